@@ -1,0 +1,58 @@
+//! `fdem`: the command-line front end of the fdem workspace.
+//!
+//! It parses arguments, calls the library crates and prints; it holds no physics. Every
+//! error is printed as one line on stderr with a non-zero exit code.
+
+mod commands;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Fast, verified FDEM simulation of granular materials.
+#[derive(Parser, Debug)]
+#[command(name = "fdem", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Print the exact-scaling factor of every catalogued quantity (paper Table 1).
+    Scale(commands::scale::ScaleArgs),
+    /// Build a tetrahedral sphere mesh and print its statistics (optionally write VTU).
+    Mesh(commands::mesh::MeshArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version go to stdout with success; real parse errors are one line.
+            if !e.use_stderr() {
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            // Clap's message up to the usage block, folded onto one line.
+            let text = e.to_string();
+            let message: Vec<&str> = text
+                .lines()
+                .take_while(|l| !l.trim().is_empty())
+                .map(str::trim)
+                .collect();
+            eprintln!("{} (see `fdem --help`)", message.join(" "));
+            return ExitCode::from(2);
+        }
+    };
+    let result = match cli.command {
+        Command::Scale(args) => commands::scale::run(&args),
+        Command::Mesh(args) => commands::mesh::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

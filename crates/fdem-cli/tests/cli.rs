@@ -1,0 +1,97 @@
+//! End-to-end tests of the `fdem` binary: what users type, what they get.
+
+use serde_json::Value;
+use std::process::{Command, Output};
+
+fn fdem(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fdem"))
+        .args(args)
+        .output()
+        .expect("the fdem binary runs")
+}
+
+fn json(out: &Output) -> Value {
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
+}
+
+#[test]
+fn scale_json_gives_the_exact_factors_of_table_1() {
+    let v = json(&fdem(&["scale", "--h", "4", "--format", "json"]));
+    let f = &v["factors"];
+    // Exactly (no round-off): integer powers of h are evaluated exactly.
+    assert_eq!(f["force"], 16.0);
+    assert_eq!(f["time"], 4.0);
+    assert_eq!(f["mass"], 64.0);
+    assert_eq!(f["penalty_stiffness"], 0.25);
+    assert_eq!(f["stress"], 1.0);
+    for key in [
+        "length", "time", "mass", "force", "stress", "strain", "youngs_modulus",
+        "poisson_ratio", "penalty_stiffness", "friction", "damping", "density", "velocity",
+        "acceleration", "energy", "contact_stiffness", "time_step",
+    ] {
+        assert!(f[key].is_number(), "factors.{key} missing");
+    }
+}
+
+#[test]
+fn scale_table_lists_every_quantity() {
+    let out = fdem(&["scale", "--h", "2"]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("penalty_stiffness"));
+    assert!(text.lines().any(|l| l.starts_with("force") && l.trim_end().ends_with(" 4")));
+}
+
+#[test]
+fn bad_h_is_one_clear_line_and_a_failure() {
+    for bad in ["0", "-2", "nan", "inf", "abc", ""] {
+        let out = fdem(&["scale", "--h", bad]);
+        assert!(!out.status.success(), "h = {bad:?} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim_end().lines().count(), 1, "h = {bad:?}: {err}");
+        assert!(err.contains("--h"), "h = {bad:?}: {err}");
+        assert!(out.stdout.is_empty());
+    }
+    let out = fdem(&["scale"]);
+    assert!(!out.status.success());
+    assert_eq!(String::from_utf8_lossy(&out.stderr).trim_end().lines().count(), 1);
+}
+
+#[test]
+fn mesh_json_reports_the_paper_particle() {
+    let v = json(&fdem(&["mesh", "--level", "1", "--order", "quadratic", "--diameter", "0.015", "--json"]));
+    assert_eq!(v["tets"], 80);
+    assert_eq!(v["nodes"], 205);
+    let ratio = v["volume_ratio_to_sphere"].as_f64().unwrap();
+    assert!((ratio - 0.8735).abs() < 5e-5, "{ratio}");
+    for key in ["surface_triangles", "surface_nodes", "volume", "surface_area", "min_altitude"] {
+        assert!(v[key].is_number(), "{key} missing");
+    }
+    let v = json(&fdem(&["mesh", "--level", "1", "--order", "linear", "--json"]));
+    assert_eq!((v["tets"].as_u64(), v["nodes"].as_u64()), (Some(80), Some(43)));
+}
+
+#[test]
+fn mesh_writes_a_vtu_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.vtu");
+    let out = fdem(&["mesh", "--level", "2", "--order", "linear", "--vtu", path.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("UnstructuredGrid") && text.contains("NumberOfPoints=\"163\""), "{}", &text[..400.min(text.len())]);
+}
+
+#[test]
+fn bad_mesh_input_is_refused() {
+    for args in [
+        &["mesh", "--level", "5"][..],
+        &["mesh", "--diameter", "-1"],
+        &["mesh", "--order", "cubic"],
+        &["mesh", "--vtu", "/nonexistent-dir/x.vtu"],
+    ] {
+        let out = fdem(args);
+        assert!(!out.status.success(), "{args:?} accepted");
+        assert_eq!(String::from_utf8_lossy(&out.stderr).trim_end().lines().count(), 1, "{args:?}");
+    }
+}

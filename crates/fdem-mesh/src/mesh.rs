@@ -1,0 +1,307 @@
+//! Tetrahedral meshes, their surfaces and quality figures.
+
+use serde::{Deserialize, Serialize};
+
+use crate::MeshError;
+use crate::geometry::{dihedral_angle, distance, tet_signed_volume, triangle_area};
+
+/// Polynomial order of the tetrahedral elements.
+///
+/// Serialised in lower case: `"linear"`, `"quadratic"`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ElementOrder {
+    /// 4-node tetrahedra (VTK_TETRA).
+    Linear,
+    /// 10-node tetrahedra with straight edges (VTK_QUADRATIC_TETRA).
+    Quadratic,
+}
+
+impl ElementOrder {
+    /// Nodes per element: 4 for [`ElementOrder::Linear`], 10 for [`ElementOrder::Quadratic`].
+    pub fn nodes_per_element(self) -> usize {
+        match self {
+            ElementOrder::Linear => 4,
+            ElementOrder::Quadratic => 10,
+        }
+    }
+
+    /// VTK cell type number: 10 (VTK_TETRA) or 24 (VTK_QUADRATIC_TETRA).
+    pub fn vtk_cell_type(self) -> u8 {
+        match self {
+            ElementOrder::Linear => 10,
+            ElementOrder::Quadratic => 24,
+        }
+    }
+}
+
+/// Local corner pairs of the six tetrahedron edges, in the order of the mid-edge nodes
+/// 4..=9 of a quadratic element (VTK_QUADRATIC_TETRA): `4:(0,1) 5:(1,2) 6:(0,2) 7:(0,3)
+/// 8:(1,3) 9:(2,3)`.
+pub const TET_EDGES: [(usize, usize); 6] = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)];
+
+/// A tetrahedral mesh of one body, in body-local coordinates.
+///
+/// Element node ordering is the project's convention (see the crate docs): corners `0..4`
+/// positively oriented, then, for quadratic elements, the mid-edge nodes in the order of
+/// [`TET_EDGES`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct TetMesh {
+    /// Element order; fixes the number of nodes per element.
+    pub order: ElementOrder,
+    /// Node positions (m).
+    pub nodes: Vec<[f64; 3]>,
+    /// Element connectivity, flat: element `e` is
+    /// `elements[e * npe .. (e + 1) * npe]` with `npe = order.nodes_per_element()`.
+    pub elements: Vec<usize>,
+    /// The closed outer surface.
+    pub surface: Surface,
+}
+
+impl TetMesh {
+    /// Number of nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Number of elements.
+    pub fn n_elements(&self) -> usize {
+        self.elements.len() / self.order.nodes_per_element()
+    }
+
+    /// Node ids of element `e` (4 or 10 of them).
+    ///
+    /// # Panics
+    /// If `e >= self.n_elements()`, like slice indexing; see [`TetMesh::get_element`].
+    pub fn element(&self, e: usize) -> &[usize] {
+        let npe = self.order.nodes_per_element();
+        &self.elements[e * npe..(e + 1) * npe]
+    }
+
+    /// Node ids of element `e`, or `None` if there is no such element.
+    pub fn get_element(&self, e: usize) -> Option<&[usize]> {
+        let npe = self.order.nodes_per_element();
+        self.elements.get(e * npe..(e + 1) * npe)
+    }
+
+    /// Corner positions of element `e`.
+    ///
+    /// # Panics
+    /// If `e` or one of its node ids is out of range (see [`TetMesh::validate`]).
+    pub fn corners(&self, e: usize) -> [[f64; 3]; 4] {
+        let el = self.element(e);
+        [
+            self.nodes[el[0]],
+            self.nodes[el[1]],
+            self.nodes[el[2]],
+            self.nodes[el[3]],
+        ]
+    }
+
+    /// Sum of the signed element volumes (m^3), from the corner nodes (straight edges).
+    ///
+    /// # Panics
+    /// If a node id is out of range (see [`TetMesh::validate`]).
+    pub fn volume(&self) -> f64 {
+        (0..self.n_elements())
+            .map(|e| {
+                let [a, b, c, d] = self.corners(e);
+                tet_signed_volume(a, b, c, d)
+            })
+            .sum()
+    }
+
+    /// Checks that the arrays fit together: the element array is a whole number of
+    /// elements, every node id (elements, surface triangles, surface nodes) is in range,
+    /// surface nodes are sorted and unique, control areas are parallel to them, and every
+    /// coordinate is finite.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let npe = self.order.nodes_per_element();
+        let n = self.nodes.len();
+        let bad = |reason: String| Err(MeshError::InvalidMesh { reason });
+        if self.elements.len() % npe != 0 {
+            return bad(format!(
+                "the element array has {} entries, not a multiple of {npe} nodes per element",
+                self.elements.len()
+            ));
+        }
+        if let Some(i) = self
+            .nodes
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return bad(format!(
+                "node {i} has a non-finite coordinate {:?}",
+                self.nodes[i]
+            ));
+        }
+        if let Some(k) = self.elements.iter().position(|&i| i >= n) {
+            return bad(format!(
+                "element {} refers to node {}, but there are only {n} nodes",
+                k / npe,
+                self.elements[k]
+            ));
+        }
+        let s = &self.surface;
+        if let Some(t) = s.triangles.iter().position(|t| t.iter().any(|&i| i >= n)) {
+            return bad(format!(
+                "surface triangle {t} {:?} refers to a node beyond the {n} nodes",
+                s.triangles[t]
+            ));
+        }
+        if let Some(i) = s.nodes.iter().position(|&i| i >= n) {
+            return bad(format!(
+                "surface node entry {i} refers to node {}, but there are only {n} nodes",
+                s.nodes[i]
+            ));
+        }
+        if s.nodes.windows(2).any(|w| w[0] >= w[1]) {
+            return bad("surface node ids are not sorted and unique".to_string());
+        }
+        if s.control_areas.len() != s.nodes.len() {
+            return bad(format!(
+                "{} control areas for {} surface nodes",
+                s.control_areas.len(),
+                s.nodes.len()
+            ));
+        }
+        Ok(())
+    }
+
+    /// Quality figures of the mesh (corner nodes, straight edges).
+    ///
+    /// # Panics
+    /// If a node id is out of range (see [`TetMesh::validate`]).
+    pub fn quality(&self) -> MeshQuality {
+        let mut q = MeshQuality {
+            volume: 0.0,
+            surface_area: self.surface.area_from_nodes(&self.nodes),
+            min_edge: f64::INFINITY,
+            max_edge: 0.0,
+            min_altitude: f64::INFINITY,
+            min_dihedral_deg: f64::INFINITY,
+            max_dihedral_deg: 0.0,
+        };
+        for e in 0..self.n_elements() {
+            let x = self.corners(e);
+            let v = tet_signed_volume(x[0], x[1], x[2], x[3]);
+            q.volume += v;
+            for &(i, j) in &TET_EDGES {
+                let len = distance(x[i], x[j]);
+                q.min_edge = q.min_edge.min(len);
+                q.max_edge = q.max_edge.max(len);
+                let [k, l] = other_two(i, j);
+                let angle = dihedral_angle(x[i], x[j], x[k], x[l]).to_degrees();
+                q.min_dihedral_deg = q.min_dihedral_deg.min(angle);
+                q.max_dihedral_deg = q.max_dihedral_deg.max(angle);
+            }
+            // Altitude of corner i over the plane of the opposite face: 3 |V| / area.
+            for i in 0..4 {
+                let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
+                let area = triangle_area(x[a], x[b], x[c]);
+                q.min_altitude = q.min_altitude.min(3.0 * v.abs() / area);
+            }
+        }
+        q
+    }
+}
+
+/// The two local corners of a tetrahedron that are not `i` or `j`.
+fn other_two(i: usize, j: usize) -> [usize; 2] {
+    let mut out = [0; 2];
+    let mut k = 0;
+    for c in 0..4 {
+        if c != i && c != j {
+            out[k] = c;
+            k += 1;
+        }
+    }
+    out
+}
+
+/// The outer surface of a body: flat 3-node triangles and the nodes on them.
+///
+/// For quadratic meshes each 6-node element face is split into 4 flat triangles
+/// (corner-mid-mid three times, plus the middle mid-mid-mid one), as the contact model
+/// uses them.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Surface {
+    /// Triangles as node ids, oriented outward: counter-clockwise seen from outside, so
+    /// `(b - a) × (c - a)` points out of the body.
+    pub triangles: Vec<[usize; 3]>,
+    /// Sorted, unique ids of the nodes that lie on the surface triangles.
+    pub nodes: Vec<usize>,
+    /// Control area of each surface node (m^2), parallel to `nodes`: one third of the
+    /// areas of the triangles around it.
+    pub control_areas: Vec<f64>,
+}
+
+impl Surface {
+    /// Total surface area (m^2), as the sum of the control areas (each triangle's area is
+    /// split in three equal parts among its corners). This is the area of the geometry the
+    /// surface was built from; for the area of moved nodes use
+    /// [`Surface::area_from_nodes`].
+    pub fn area(&self) -> f64 {
+        self.control_areas.iter().sum()
+    }
+
+    /// Total area (m^2) of the triangles at the given node positions.
+    ///
+    /// # Panics
+    /// If a triangle refers to a node beyond `nodes`.
+    pub fn area_from_nodes(&self, nodes: &[[f64; 3]]) -> f64 {
+        self.triangles
+            .iter()
+            .map(|&[a, b, c]| triangle_area(nodes[a], nodes[b], nodes[c]))
+            .sum()
+    }
+
+    /// Builds a surface from outward triangles: collects the sorted unique node ids and
+    /// gives each one third of the area of every triangle around it.
+    ///
+    /// # Panics
+    /// If a triangle refers to a node beyond `nodes`.
+    pub fn from_triangles(triangles: Vec<[usize; 3]>, nodes: &[[f64; 3]]) -> Surface {
+        let mut ids: Vec<usize> = triangles.iter().flatten().copied().collect();
+        ids.sort_unstable();
+        ids.dedup();
+        // Map node id -> position in `ids` through a dense table over the id range.
+        let max = ids.last().map_or(0, |&m| m + 1);
+        let mut slot = vec![usize::MAX; max];
+        for (k, &i) in ids.iter().enumerate() {
+            slot[i] = k;
+        }
+        let mut control_areas = vec![0.0; ids.len()];
+        for &[a, b, c] in &triangles {
+            let third = triangle_area(nodes[a], nodes[b], nodes[c]) / 3.0;
+            for i in [a, b, c] {
+                control_areas[slot[i]] += third;
+            }
+        }
+        Surface {
+            triangles,
+            nodes: ids,
+            control_areas,
+        }
+    }
+}
+
+/// Quality figures of a tetrahedral mesh, computed from the corner nodes (straight edges).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MeshQuality {
+    /// Sum of the signed element volumes (m^3).
+    pub volume: f64,
+    /// Area of the surface triangles (m^2).
+    pub surface_area: f64,
+    /// Shortest corner-to-corner element edge (m).
+    pub min_edge: f64,
+    /// Longest corner-to-corner element edge (m).
+    pub max_edge: f64,
+    /// Smallest distance from an element corner to the plane of its opposite face (m);
+    /// this bounds the stable explicit time step.
+    pub min_altitude: f64,
+    /// Smallest interior dihedral angle over all elements (degrees).
+    pub min_dihedral_deg: f64,
+    /// Largest interior dihedral angle over all elements (degrees).
+    pub max_dihedral_deg: f64,
+}
