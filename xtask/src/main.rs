@@ -40,13 +40,41 @@ struct Series {
 }
 
 const SERIES: &[Series] = &[
-    Series { tests: "E1", diameters: &[0.015], h: 1.0 },
-    Series { tests: "E2 / E2s", diameters: &[0.030], h: 2.0 },
-    Series { tests: "E3 / E3s", diameters: &[0.045], h: 3.0 },
-    Series { tests: "E4 / E4s", diameters: &[0.060], h: 4.0 },
-    Series { tests: "B1", diameters: &[0.015, 0.030], h: 1.0 },
-    Series { tests: "B2 / B2s", diameters: &[0.0225, 0.045], h: 1.5 },
-    Series { tests: "B3 / B3s", diameters: &[0.030, 0.060], h: 2.0 },
+    Series {
+        tests: "E1",
+        diameters: &[0.015],
+        h: 1.0,
+    },
+    Series {
+        tests: "E2 / E2s",
+        diameters: &[0.030],
+        h: 2.0,
+    },
+    Series {
+        tests: "E3 / E3s",
+        diameters: &[0.045],
+        h: 3.0,
+    },
+    Series {
+        tests: "E4 / E4s",
+        diameters: &[0.060],
+        h: 4.0,
+    },
+    Series {
+        tests: "B1",
+        diameters: &[0.015, 0.030],
+        h: 1.0,
+    },
+    Series {
+        tests: "B2 / B2s",
+        diameters: &[0.0225, 0.045],
+        h: 1.5,
+    },
+    Series {
+        tests: "B3 / B3s",
+        diameters: &[0.030, 0.060],
+        h: 2.0,
+    },
 ];
 
 /// Paper Table 3: normal penalty p_n in N/m^3.
@@ -61,7 +89,9 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
         "The triaxial loading is not implemented yet (issues 3-7). This run prints the\n\
          preflight it will start from, all computed now by fdem-scaling and fdem-mesh.\n"
     );
-    println!("Coarse-graining series of the source paper (Table 4), particle meshes level 1, 10-node:");
+    println!(
+        "Coarse-graining series of the source paper (Table 4), particle meshes level 1, 10-node:"
+    );
     println!(
         "{:<10} {:>5} {:>14} {:>12} {:>8} {:>8} {:>14} {:>9}",
         "tests", "h", "d (mm)", "p_n*1/h", "tets", "nodes", "volume (m^3)", "V/sphere"
@@ -102,6 +132,8 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
         }
     }
     println!("\np_n*1/h: the normal penalty of the exactly scaled variant (the `s` tests);");
-    println!("the plain variants keep p_n = {NORMAL_PENALTY:.1e} N/m^3. Full factor table: `fdem scale --h H`.");
+    println!(
+        "the plain variants keep p_n = {NORMAL_PENALTY:.1e} N/m^3. Full factor table: `fdem scale --h H`."
+    );
     Ok(())
 }

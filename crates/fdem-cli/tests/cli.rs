@@ -11,7 +11,11 @@ fn fdem(args: &[&str]) -> Output {
 }
 
 fn json(out: &Output) -> Value {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
 }
 
@@ -26,9 +30,23 @@ fn scale_json_gives_the_exact_factors_of_table_1() {
     assert_eq!(f["penalty_stiffness"], 0.25);
     assert_eq!(f["stress"], 1.0);
     for key in [
-        "length", "time", "mass", "force", "stress", "strain", "youngs_modulus",
-        "poisson_ratio", "penalty_stiffness", "friction", "damping", "density", "velocity",
-        "acceleration", "energy", "contact_stiffness", "time_step",
+        "length",
+        "time",
+        "mass",
+        "force",
+        "stress",
+        "strain",
+        "youngs_modulus",
+        "poisson_ratio",
+        "penalty_stiffness",
+        "friction",
+        "damping",
+        "density",
+        "velocity",
+        "acceleration",
+        "energy",
+        "contact_stiffness",
+        "time_step",
     ] {
         assert!(f[key].is_number(), "factors.{key} missing");
     }
@@ -40,7 +58,10 @@ fn scale_table_lists_every_quantity() {
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("penalty_stiffness"));
-    assert!(text.lines().any(|l| l.starts_with("force") && l.trim_end().ends_with(" 4")));
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("force") && l.trim_end().ends_with(" 4"))
+    );
 }
 
 #[test]
@@ -55,31 +76,73 @@ fn bad_h_is_one_clear_line_and_a_failure() {
     }
     let out = fdem(&["scale"]);
     assert!(!out.status.success());
-    assert_eq!(String::from_utf8_lossy(&out.stderr).trim_end().lines().count(), 1);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr)
+            .trim_end()
+            .lines()
+            .count(),
+        1
+    );
 }
 
 #[test]
 fn mesh_json_reports_the_paper_particle() {
-    let v = json(&fdem(&["mesh", "--level", "1", "--order", "quadratic", "--diameter", "0.015", "--json"]));
+    let v = json(&fdem(&[
+        "mesh",
+        "--level",
+        "1",
+        "--order",
+        "quadratic",
+        "--diameter",
+        "0.015",
+        "--json",
+    ]));
     assert_eq!(v["tets"], 80);
     assert_eq!(v["nodes"], 205);
     let ratio = v["volume_ratio_to_sphere"].as_f64().unwrap();
     assert!((ratio - 0.8735).abs() < 5e-5, "{ratio}");
-    for key in ["surface_triangles", "surface_nodes", "volume", "surface_area", "min_altitude"] {
+    for key in [
+        "surface_triangles",
+        "surface_nodes",
+        "volume",
+        "surface_area",
+        "min_altitude",
+    ] {
         assert!(v[key].is_number(), "{key} missing");
     }
-    let v = json(&fdem(&["mesh", "--level", "1", "--order", "linear", "--json"]));
-    assert_eq!((v["tets"].as_u64(), v["nodes"].as_u64()), (Some(80), Some(43)));
+    let v = json(&fdem(&[
+        "mesh", "--level", "1", "--order", "linear", "--json",
+    ]));
+    assert_eq!(
+        (v["tets"].as_u64(), v["nodes"].as_u64()),
+        (Some(80), Some(43))
+    );
 }
 
 #[test]
 fn mesh_writes_a_vtu_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sphere.vtu");
-    let out = fdem(&["mesh", "--level", "2", "--order", "linear", "--vtu", path.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = fdem(&[
+        "mesh",
+        "--level",
+        "2",
+        "--order",
+        "linear",
+        "--vtu",
+        path.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(&path).unwrap();
-    assert!(text.contains("UnstructuredGrid") && text.contains("NumberOfPoints=\"163\""), "{}", &text[..400.min(text.len())]);
+    assert!(
+        text.contains("UnstructuredGrid") && text.contains("NumberOfPoints=\"163\""),
+        "{}",
+        &text[..400.min(text.len())]
+    );
 }
 
 #[test]
@@ -92,6 +155,13 @@ fn bad_mesh_input_is_refused() {
     ] {
         let out = fdem(args);
         assert!(!out.status.success(), "{args:?} accepted");
-        assert_eq!(String::from_utf8_lossy(&out.stderr).trim_end().lines().count(), 1, "{args:?}");
+        assert_eq!(
+            String::from_utf8_lossy(&out.stderr)
+                .trim_end()
+                .lines()
+                .count(),
+            1,
+            "{args:?}"
+        );
     }
 }

@@ -75,7 +75,11 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
         mesh.write_vtu(path)
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    let format = if args.json { Format::Json } else { Format::Table };
+    let format = if args.json {
+        Format::Json
+    } else {
+        Format::Table
+    };
     match format {
         Format::Json => {
             let out = json!({
