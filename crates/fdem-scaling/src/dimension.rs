@@ -65,7 +65,11 @@ impl Mul for Dimension {
 impl Div for Dimension {
     type Output = Dimension;
     fn div(self, rhs: Dimension) -> Dimension {
-        self * rhs.recip()
+        Dimension::new(
+            self.length - rhs.length,
+            self.time - rhs.time,
+            self.mass - rhs.mass,
+        )
     }
 }
 
