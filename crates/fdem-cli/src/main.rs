@@ -22,6 +22,8 @@ enum Command {
     Scale(commands::scale::ScaleArgs),
     /// Build a tetrahedral sphere mesh and print its statistics (optionally write VTU).
     Mesh(commands::mesh::MeshArgs),
+    /// Run a scene file (TOML) and write its outputs to a directory.
+    Run(commands::run::RunArgs),
 }
 
 fn main() -> ExitCode {
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scale(args) => commands::scale::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
+        Command::Run(args) => commands::run::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

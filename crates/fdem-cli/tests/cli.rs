@@ -165,3 +165,78 @@ fn bad_mesh_input_is_refused() {
         );
     }
 }
+
+fn example(name: &str) -> String {
+    format!(
+        "{}/../../examples/scenes/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+#[test]
+fn run_writes_the_documented_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = fdem(&[
+        "run",
+        &example("two_particles.toml"),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["status"], "completed");
+    assert_eq!(summary["bodies"], 2);
+    assert_eq!(summary["threads"], 2);
+    let energy = std::fs::read_to_string(out_dir.join("energy.csv")).unwrap();
+    assert!(energy.starts_with("time,kinetic,strain,external_work,dissipated,balance_error\n"));
+    let bodies = std::fs::read_to_string(out_dir.join("bodies.csv")).unwrap();
+    assert!(bodies.starts_with("time,body,x,y,z,vx,vy,vz,wx,wy,wz\n"));
+    // The plan is announced up front on stderr.
+    assert!(String::from_utf8_lossy(&out.stderr).contains("steps of dt"));
+}
+
+#[test]
+fn run_refuses_a_bad_scene_in_one_line_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.toml");
+    let text = std::fs::read_to_string(example("two_particles.toml")).unwrap();
+    std::fs::write(&scene, text.replace("dt_safety = 0.5", "dt_safety = 2.0")).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = fdem(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("bad.toml:5:") && err.contains("simulation.dt_safety"),
+        "{err}"
+    );
+    assert!(!out_dir.exists());
+    let missing = fdem(&[
+        "run",
+        "/nonexistent/scene.toml",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!missing.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&missing.stderr)
+            .trim_end()
+            .lines()
+            .count(),
+        1
+    );
+}

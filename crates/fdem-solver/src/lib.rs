@@ -1,8 +1,36 @@
-//! # fdem-solver (not yet implemented)
+//! # fdem-solver: the explicit dynamics engine
 //!
-//! Will own the explicit dynamics engine: node state in structure-of-arrays form, bodies as
-//! contiguous node and element ranges, the force-contribution interface (elements, contact,
-//! walls, membranes), central-difference time stepping with an automatic stable step,
-//! energy bookkeeping, the stability guard, TOML scenes and run outputs. This crate is an
-//! empty placeholder until the elastic/solver issue fills it.
+//! This crate owns the time integration of an FDEM system: node state in
+//! structure-of-arrays form ([`NodeState`]), bodies as contiguous node and element ranges
+//! ([`Body`]), the [`ForceContribution`] interface that elements now, and contact, walls
+//! and membranes later, implement, explicit central differences (velocity Verlet) with a
+//! fixed or automatic step ([`Simulation`]), energy bookkeeping with a stability guard,
+//! TOML scenes ([`Scene`], schema in `docs/SCENES.md`) and run outputs ([`run`]).
+//!
+//! It does not own element kernels (fdem-elastic), meshes (fdem-mesh) or contact
+//! (fdem-contact); it composes them.
+//!
+//! **Determinism.** Per-body element loops run in parallel with rayon, but bodies own
+//! disjoint node ranges, so every force is summed in the same order whatever the thread
+//! count: runs are bit-for-bit repeatable.
 #![warn(missing_docs)]
+
+mod body;
+mod engine;
+mod error;
+mod forces;
+pub mod output;
+mod run;
+mod scene;
+mod state;
+
+pub use body::{Body, BodyMotion};
+pub use engine::{EnergyReport, Guard, Simulation, TimeStep};
+pub use error::SolverError;
+pub use forces::{BodyElements, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
+pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
+pub use scene::{
+    DEFAULT_DT_SAFETY, DEFAULT_OUTPUTS, MaterialSection, MeshSection, ParticleSection, Scene,
+    SimulationSection,
+};
+pub use state::NodeState;

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod mesh;
+pub mod run;
 pub mod scale;
 
 use anyhow::{Context, bail};

@@ -1,0 +1,141 @@
+//! Bodies: contiguous node and element ranges, and their rigid-body summaries.
+
+use crate::NodeState;
+use std::ops::Range;
+
+/// One deformable body (a particle) of the simulation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Global node ids.
+    pub nodes: Range<usize>,
+    /// Global element ids.
+    pub elements: Range<usize>,
+}
+
+/// Rigid-body summary of one body: what `bodies.csv` reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BodyMotion {
+    /// Total mass (kg).
+    pub mass: f64,
+    /// Mass-weighted centroid (m).
+    pub centroid: [f64; 3],
+    /// Linear momentum divided by mass (m/s).
+    pub velocity: [f64; 3],
+    /// Angular velocity `I^-1 L` about the centroid (rad/s).
+    pub angular_velocity: [f64; 3],
+    /// Angular momentum `L = sum m r x v` about the centroid (kg m^2/s).
+    pub angular_momentum: [f64; 3],
+}
+
+impl Body {
+    /// Rigid-body summary from the node state: centroid, momentum / mass, angular momentum
+    /// about the centroid and the angular velocity that inertia tensor maps it from.
+    pub fn motion(&self, state: &NodeState) -> BodyMotion {
+        let r = self.nodes.clone();
+        let x = &state.positions[r.clone()];
+        let v = &state.velocities[r.clone()];
+        let m = &state.masses[r];
+        let mut mass = 0.0;
+        let mut c = [0.0; 3];
+        let mut p = [0.0; 3];
+        for ((xi, vi), &mi) in x.iter().zip(v).zip(m) {
+            mass += mi;
+            for k in 0..3 {
+                c[k] += mi * xi[k];
+                p[k] += mi * vi[k];
+            }
+        }
+        for k in 0..3 {
+            c[k] /= mass;
+            p[k] /= mass;
+        }
+        // Angular momentum and inertia tensor about the centroid.
+        let mut l = [0.0; 3];
+        let mut inertia = [[0.0; 3]; 3];
+        for ((xi, vi), &mi) in x.iter().zip(v).zip(m) {
+            let d = [xi[0] - c[0], xi[1] - c[1], xi[2] - c[2]];
+            let u = [vi[0] - p[0], vi[1] - p[1], vi[2] - p[2]];
+            let cr = cross(d, u);
+            let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            for a in 0..3 {
+                l[a] += mi * cr[a];
+                for b in 0..3 {
+                    let delta = if a == b { d2 } else { 0.0 };
+                    inertia[a][b] += mi * (delta - d[a] * d[b]);
+                }
+            }
+        }
+        let angular_velocity = solve3(inertia, l).unwrap_or([0.0; 3]);
+        BodyMotion {
+            mass,
+            centroid: c,
+            velocity: p,
+            angular_velocity,
+            angular_momentum: l,
+        }
+    }
+}
+
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Solves the 3x3 system `a x = b` by Cramer's rule; `None` if `a` is singular.
+fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(a);
+    let scale = a.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max);
+    if d.abs() <= 1e-300 || d.abs() <= 1e-14 * scale.powi(3) {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for (k, xk) in x.iter_mut().enumerate() {
+        let mut ak = a;
+        for row in 0..3 {
+            ak[row][k] = b[row];
+        }
+        *xk = det(ak) / d;
+    }
+    Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spinning_ring_reports_its_angular_velocity() {
+        // Four point masses on a square ring in the xy plane, spinning at w about z.
+        let w = 3.0;
+        let pos = vec![
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 0.5],
+            [0.0, 0.0, -0.5],
+        ];
+        let mut state = NodeState::new(pos.clone(), vec![1.0; 6]);
+        for (v, x) in state.velocities.iter_mut().zip(&pos) {
+            let u = cross([0.0, 0.0, w], *x);
+            *v = [u[0] + 2.0, u[1], u[2]];
+        }
+        let body = Body {
+            nodes: 0..6,
+            elements: 0..0,
+        };
+        let m = body.motion(&state);
+        assert_eq!(m.mass, 6.0);
+        assert!((m.velocity[0] - 2.0).abs() < 1e-14);
+        assert!((m.angular_velocity[2] - w).abs() < 1e-12);
+        assert!(m.angular_velocity[0].abs() < 1e-12 && m.angular_velocity[1].abs() < 1e-12);
+    }
+}

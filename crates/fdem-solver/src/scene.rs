@@ -1,0 +1,418 @@
+//! TOML scenes: the public schema of `fdem run`, its validation and the build into a
+//! [`Simulation`].
+//!
+//! The schema is documented in `docs/SCENES.md`; it is a public interface, extended only
+//! additively. Every range check happens while deserializing, so an error carries the key
+//! path and the line of the offending value.
+
+use crate::engine::{Simulation, TimeStep};
+use crate::forces::ElasticForces;
+use crate::{Body, NodeState, SolverError};
+use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
+use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A whole scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// `[simulation]`: time span, step and outputs.
+    pub simulation: SimulationSection,
+    /// `[material]`: the particles' elastic material.
+    pub material: MaterialSection,
+    /// `[[particle]]`: the particles.
+    #[serde(rename = "particle", default)]
+    pub particles: Vec<ParticleSection>,
+}
+
+/// `[simulation]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationSection {
+    /// Simulated duration (s), required, > 0.
+    #[serde(deserialize_with = "positive")]
+    pub duration: f64,
+    /// Fixed time step (s); omitted means automatic.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub dt: Option<f64>,
+    /// Fraction of the stable bound used when `dt` is automatic, in (0, 1]; default 0.5.
+    #[serde(
+        default,
+        deserialize_with = "safety_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub dt_safety: Option<f64>,
+    /// Time between outputs (s); default `duration / 100`.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub output_interval: Option<f64>,
+    /// Gravitational acceleration (m/s^2); default zero.
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub gravity: Option<[f64; 3]>,
+    /// Stability guard: largest energy balance error as a fraction of the energy scale;
+    /// default 0.05.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub energy_tolerance: Option<f64>,
+}
+
+/// `[material]`: isotropic linear elasticity.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSection {
+    /// Density (kg/m^3), > 0.
+    #[serde(deserialize_with = "positive")]
+    pub density: f64,
+    /// Young's modulus (Pa), > 0.
+    #[serde(deserialize_with = "positive")]
+    pub youngs_modulus: f64,
+    /// Poisson's ratio, in (-1, 0.5).
+    #[serde(deserialize_with = "poisson")]
+    pub poisson_ratio: f64,
+}
+
+/// `[[particle]]`: one spherical particle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSection {
+    /// Nominal diameter (m), > 0.
+    #[serde(deserialize_with = "positive")]
+    pub diameter: f64,
+    /// Centre (m).
+    #[serde(deserialize_with = "vector")]
+    pub center: [f64; 3],
+    /// Initial velocity of the centre (m/s); default zero.
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub velocity: Option<[f64; 3]>,
+    /// Initial angular velocity about the centre (rad/s); default zero.
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub angular_velocity: Option<[f64; 3]>,
+    /// Orientation as a unit quaternion `[w, x, y, z]`; default identity.
+    #[serde(
+        default,
+        deserialize_with = "quaternion_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub orientation: Option<[f64; 4]>,
+    /// Mesh of the particle; default level 1, linear, inscribed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshSection>,
+}
+
+/// `mesh = { level = 1, order = "linear", sizing = "inscribed" }`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSection {
+    /// Icosahedron subdivision level 0..=4; default 1.
+    #[serde(default = "default_level", deserialize_with = "level")]
+    pub level: u32,
+    /// `"linear"` (4-node) or `"quadratic"` (10-node); default linear.
+    #[serde(default = "default_order")]
+    pub order: ElementOrder,
+    /// `"inscribed"` or `"volume_equivalent"`; default inscribed.
+    #[serde(default)]
+    pub sizing: Sizing,
+}
+
+impl Default for MeshSection {
+    fn default() -> Self {
+        MeshSection {
+            level: default_level(),
+            order: default_order(),
+            sizing: Sizing::default(),
+        }
+    }
+}
+
+fn default_level() -> u32 {
+    1
+}
+
+fn default_order() -> ElementOrder {
+    ElementOrder::Linear
+}
+
+/// Default fraction of the stable bound.
+pub const DEFAULT_DT_SAFETY: f64 = 0.5;
+/// Default number of outputs over the duration.
+pub const DEFAULT_OUTPUTS: f64 = 100.0;
+
+fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "must be a positive finite number (SI units), got {v}"
+        )))
+    }
+}
+
+fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    positive(d).map(Some)
+}
+
+fn safety_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v > 0.0 && v <= 1.0 {
+        Ok(Some(v))
+    } else {
+        Err(D::Error::custom(format!(
+            "must be a fraction of the stable bound in (0, 1], got {v}"
+        )))
+    }
+}
+
+fn poisson<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v > -1.0 && v < 0.5 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "Poisson's ratio must lie in (-1, 0.5), got {v}"
+        )))
+    }
+}
+
+fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = i64::deserialize(d)?;
+    if (0..=4).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(D::Error::custom(format!(
+            "subdivision level must be 0, 1, 2, 3 or 4, got {v}"
+        )))
+    }
+}
+
+fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    let v = <[f64; 3]>::deserialize(d)?;
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "every component must be finite, got {v:?}"
+        )))
+    }
+}
+
+fn vector_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+    vector(d).map(Some)
+}
+
+fn quaternion_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D::Error> {
+    let q = <[f64; 4]>::deserialize(d)?;
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if norm.is_finite() && (norm - 1.0).abs() <= 1e-6 {
+        Ok(Some(q.map(|x| x / norm)))
+    } else {
+        Err(D::Error::custom(format!(
+            "must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got {q:?} with norm {norm}"
+        )))
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rfind('\n').map_or(offset, |p| offset - p - 1) + 1;
+    (line, column)
+}
+
+impl Scene {
+    /// Parses a scene from TOML text; `origin` names the file in error messages.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Scene, SolverError> {
+        let error = |span: Option<std::ops::Range<usize>>, key: String, message: String| {
+            let (line, column) = span.map_or((0, 0), |s| line_column(text, s.start));
+            SolverError::Scene {
+                file: origin.to_string(),
+                line,
+                column,
+                key,
+                message,
+            }
+        };
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| error(e.span(), "<document>".into(), e.message().to_string()))?;
+        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            error(inner.span(), key, inner.message().to_string())
+        })?;
+        scene.check_consistency(origin)?;
+        Ok(scene)
+    }
+
+    /// Reads and parses a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SolverError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| SolverError::io("reading scene", path, e))?;
+        Scene::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// The scene as TOML text.
+    pub fn to_toml_string(&self) -> Result<String, SolverError> {
+        toml::to_string(self).map_err(|e| SolverError::InvalidScene(e.to_string()))
+    }
+
+    /// Checks that need more than one value.
+    fn check_consistency(&self, origin: &str) -> Result<(), SolverError> {
+        let fail = |key: String, message: String| SolverError::Scene {
+            file: origin.to_string(),
+            line: 0,
+            column: 0,
+            key,
+            message,
+        };
+        if self.particles.is_empty() {
+            return Err(fail(
+                "particle".into(),
+                "the scene has no particles; add at least one [[particle]] table".into(),
+            ));
+        }
+        let first = self.particles[0].mesh.unwrap_or_default().order;
+        for (i, p) in self.particles.iter().enumerate() {
+            let order = p.mesh.unwrap_or_default().order;
+            if order != first {
+                return Err(fail(
+                    format!("particle[{i}].mesh.order"),
+                    format!(
+                        "all particles of a scene must share one element order; particle[0] is {first:?}, this one {order:?}"
+                    ),
+                ));
+            }
+        }
+        let s = &self.simulation;
+        if let Some(interval) = s.output_interval {
+            if interval > s.duration {
+                return Err(fail(
+                    "simulation.output_interval".into(),
+                    format!("{interval} s is longer than the duration {} s", s.duration),
+                ));
+            }
+        }
+        if let Some(dt) = s.dt {
+            if dt > s.duration {
+                return Err(fail(
+                    "simulation.dt".into(),
+                    format!("{dt} s is longer than the duration {} s", s.duration),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The time-step rule of the scene.
+    pub fn time_step(&self) -> TimeStep {
+        match self.simulation.dt {
+            Some(dt) => TimeStep::Fixed(dt),
+            None => TimeStep::Automatic {
+                safety: self.simulation.dt_safety.unwrap_or(DEFAULT_DT_SAFETY),
+            },
+        }
+    }
+
+    /// Time between outputs (s).
+    pub fn output_interval(&self) -> f64 {
+        self.simulation
+            .output_interval
+            .unwrap_or(self.simulation.duration / DEFAULT_OUTPUTS)
+    }
+
+    /// Builds the meshes, masses and initial state and returns a ready simulation.
+    pub fn build(&self) -> Result<Simulation, SolverError> {
+        let m = &self.material;
+        let material = fdem_elastic::Material::new(m.density, m.youngs_modulus, m.poisson_ratio)
+            .map_err(|source| SolverError::Elastic { body: 0, source })?;
+        // One unit-diameter template per mesh kind, scaled by each particle's diameter.
+        let mut templates: BTreeMap<(u32, bool, bool), TetMesh> = BTreeMap::new();
+        let mut assembly = MeshAssembly::new();
+        for p in &self.particles {
+            let mesh = p.mesh.unwrap_or_default();
+            let key = (
+                mesh.level,
+                mesh.order == ElementOrder::Quadratic,
+                mesh.sizing == Sizing::VolumeEquivalent,
+            );
+            let template = match templates.entry(key) {
+                std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+                std::collections::btree_map::Entry::Vacant(e) => {
+                    e.insert(sphere_mesh(&SphereSpec {
+                        level: mesh.level,
+                        order: mesh.order,
+                        diameter: 1.0,
+                        sizing: mesh.sizing,
+                    })?)
+                }
+            };
+            let placement = Placement {
+                scale: p.diameter,
+                rotation: p.orientation.unwrap_or([1.0, 0.0, 0.0, 0.0]),
+                translation: p.center,
+            };
+            assembly.push_instance(template, &placement)?;
+        }
+        let bodies: Vec<Body> = assembly
+            .bodies
+            .iter()
+            .map(|b| Body {
+                nodes: b.nodes.clone(),
+                elements: b.elements.clone(),
+            })
+            .collect();
+        let npe = assembly.nodes_per_element();
+        let elastic =
+            ElasticForces::new(&material, npe, &assembly.nodes, &assembly.elements, &bodies)?;
+        let masses = elastic.lumped_masses(assembly.n_nodes());
+        let mut state = NodeState::new(assembly.nodes.clone(), masses);
+        for (p, body) in self.particles.iter().zip(&bodies) {
+            let v = p.velocity.unwrap_or([0.0; 3]);
+            let w = p.angular_velocity.unwrap_or([0.0; 3]);
+            for i in body.nodes.clone() {
+                let x = state.positions[i];
+                let r = [x[0] - p.center[0], x[1] - p.center[1], x[2] - p.center[2]];
+                let u = crate::body::cross(w, r);
+                state.velocities[i] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
+            }
+        }
+        let mut sim = Simulation::new(
+            state,
+            bodies,
+            npe,
+            assembly.elements,
+            elastic,
+            Vec::new(),
+            self.simulation.gravity.unwrap_or([0.0; 3]),
+            self.time_step(),
+        )?;
+        if let Some(tol) = self.simulation.energy_tolerance {
+            sim.guard.energy_tolerance = tol;
+        }
+        Ok(sim)
+    }
+}
