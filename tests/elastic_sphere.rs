@@ -25,17 +25,17 @@ fn sphere(level: u32, order: ElementOrder) -> fdem_mesh::TetMesh {
 /// (a pure strain, so the polar rotation is the identity) reproduces the uniform analytic
 /// stress `sigma = lambda tr(eps) I + 2 mu eps`, `eps = G`, in every element, for every
 /// level and both orders, and puts no force on interior nodes. Tolerance 1e-9 relative to
-/// |sigma|: the only error is round-off (a non-symmetric G would rotate the stress by
-/// skew(G), a real second-order effect of ~5e-8 here), and any kernel mistake shows at
-/// order 1.
+/// |sigma|: the only error is round-off, about 1e-16 x (R / h_min) / |G| = 1e-11 here
+/// for |G| = 1e-4 (a non-symmetric G would rotate the stress by skew(G), a real
+/// second-order effect), and any kernel mistake shows at order 1.
 #[test]
 fn patch_test_on_meshed_spheres() {
     let m = material();
     let (lambda, mu) = (m.lame_lambda(), m.shear_modulus());
     let g = [
-        [1.0e-6, 0.3e-6, -0.2e-6],
-        [0.3e-6, -0.5e-6, 0.4e-6],
-        [-0.2e-6, 0.4e-6, 0.7e-6],
+        [1.0e-4, 0.3e-4, -0.2e-4],
+        [0.3e-4, -0.5e-4, 0.4e-4],
+        [-0.2e-4, 0.4e-4, 0.7e-4],
     ];
     let eps = |i: usize, j: usize| 0.5 * (g[i][j] + g[j][i]);
     let tr = eps(0, 0) + eps(1, 1) + eps(2, 2);
