@@ -197,7 +197,10 @@ fn run_writes_the_documented_outputs() {
     assert_eq!(summary["bodies"], 2);
     assert_eq!(summary["threads"], 2);
     let energy = std::fs::read_to_string(out_dir.join("energy.csv")).unwrap();
-    assert!(energy.starts_with("time,kinetic,strain,external_work,dissipated,balance_error\n"));
+    assert!(energy.starts_with(
+        "time,kinetic,strain,external_work,dissipated,balance_error,contact,damping_dissipated,friction_dissipated\n"
+    ));
+    assert!(out_dir.join("walls.csv").exists());
     let bodies = std::fs::read_to_string(out_dir.join("bodies.csv")).unwrap();
     assert!(bodies.starts_with("time,body,x,y,z,vx,vy,vz,wx,wy,wz\n"));
     // The plan is announced up front on stderr.

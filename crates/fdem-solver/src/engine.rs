@@ -28,6 +28,12 @@ pub struct Guard {
     pub energy_tolerance: f64,
     /// Steps between energy checks (non-finite values are checked every step).
     pub check_interval: u64,
+    /// Absolute floor of the energy scale, as a fraction of `M c_p^2` (total mass times
+    /// the squared p-wave speed): the kinetic energy of the system moving at
+    /// `sqrt(2 x 1e-12) c_p`, about 6 mm/s for rock. Below it the balance error is
+    /// round-off of a system at rest, not instability; an instability grows exponentially
+    /// and passes the floor a few dozen steps after it starts.
+    pub energy_floor: f64,
 }
 
 impl Default for Guard {
@@ -35,6 +41,7 @@ impl Default for Guard {
         Guard {
             energy_tolerance: 0.05,
             check_interval: 256,
+            energy_floor: 1e-12,
         }
     }
 }
@@ -50,9 +57,13 @@ pub struct EnergyReport {
     pub strain: f64,
     /// Energy stored by other contributions (contact springs, ...).
     pub other_potential: f64,
+    /// Energy dissipated by viscous damping since the start.
+    pub damping_dissipated: f64,
+    /// Energy dissipated by friction sliding since the start.
+    pub friction_dissipated: f64,
     /// Work done on the system by external forces (gravity, loads) since the start.
     pub external_work: f64,
-    /// Energy dissipated since the start (damping, friction).
+    /// Energy dissipated since the start (damping + friction).
     pub dissipated: f64,
     /// `kinetic + strain + other_potential + dissipated - external_work - initial total`:
     /// zero for exact energy conservation.
@@ -86,8 +97,11 @@ pub struct Simulation {
     /// Stability guard settings.
     pub guard: Guard,
     initial_energy: f64,
+    /// `M c_p^2` of the system (J), the unit of [`Guard::energy_floor`].
+    wave_energy: f64,
     contribution_work: f64,
-    dissipated: f64,
+    damping_dissipated: f64,
+    friction_dissipated: f64,
     last_powers: Powers,
 }
 
@@ -124,7 +138,14 @@ impl Simulation {
                 bound.dt, bound.source
             )));
         }
+        let total_mass: f64 = state.masses.iter().sum();
+        let wave_speed = elastic
+            .bodies
+            .iter()
+            .map(|b| b.set.material().p_wave_speed())
+            .fold(0.0, f64::max);
         let mut sim = Simulation {
+            wave_energy: total_mass * wave_speed * wave_speed,
             state,
             bodies,
             nodes_per_element,
@@ -139,7 +160,8 @@ impl Simulation {
             guard: Guard::default(),
             initial_energy: 0.0,
             contribution_work: 0.0,
-            dissipated: 0.0,
+            damping_dissipated: 0.0,
+            friction_dissipated: 0.0,
             last_powers: Powers::default(),
         };
         sim.compute_forces()?;
@@ -154,7 +176,8 @@ impl Simulation {
     pub fn rebase_energy(&mut self) -> Result<(), SolverError> {
         self.compute_forces()?;
         self.contribution_work = 0.0;
-        self.dissipated = 0.0;
+        self.damping_dissipated = 0.0;
+        self.friction_dissipated = 0.0;
         let e = self.energy();
         self.initial_energy = e.kinetic + e.strain + e.other_potential;
         Ok(())
@@ -243,7 +266,8 @@ impl Simulation {
         for c in &mut self.contributions {
             let p = c.add_forces(view, &mut state.forces)?;
             powers.external += p.external;
-            powers.dissipated += p.dissipated;
+            powers.damping += p.damping;
+            powers.friction_energy += p.friction_energy;
         }
         let g = self.gravity;
         if g != [0.0; 3] {
@@ -288,14 +312,19 @@ impl Simulation {
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.compute_forces() {
+            // An inverted element or a refused contact step during the time loop is a
+            // step-size problem: report it with the step, time, dt and bound.
             return Err(match e {
-                SolverError::Elastic { .. } => self.unstable(step, time, e.to_string()),
+                SolverError::Elastic { .. } | SolverError::Contact(_) => {
+                    self.unstable(step, time, e.to_string())
+                }
                 other => other,
             });
         }
         // Work and dissipation over the step, from powers at the half-step velocities.
         self.contribution_work += dt * self.last_powers.external;
-        self.dissipated += dt * self.last_powers.dissipated;
+        self.damping_dissipated += dt * self.last_powers.damping;
+        self.friction_dissipated += self.last_powers.friction_energy;
         let finite = {
             let s = &mut self.state;
             s.velocities
@@ -328,18 +357,24 @@ impl Simulation {
     }
 
     /// The energy scale the balance error is measured against: the largest of the initial
-    /// energy, the external work and the dissipated energy.
+    /// energy, the external work, the dissipated energy and the guard's absolute floor.
     pub fn energy_scale(&self, e: &EnergyReport) -> f64 {
         self.initial_energy
             .abs()
             .max(e.external_work.abs())
             .max(e.dissipated.abs())
+            .max(self.guard.energy_floor * self.wave_energy)
             .max(f64::MIN_POSITIVE)
     }
 
     /// `|balance error| / energy scale`.
     pub fn relative_balance_error(&self, e: &EnergyReport) -> f64 {
         e.balance_error.abs() / self.energy_scale(e)
+    }
+
+    /// The contact contribution, if the simulation has one.
+    pub fn contact(&self) -> Option<&crate::ContactForces> {
+        self.contributions.iter().find_map(|c| c.as_contact())
     }
 
     /// Stops the run if the energy balance error has grown past the guard's tolerance.
@@ -406,14 +441,17 @@ impl Simulation {
                 .sum()
         };
         let external_work = gravity_work + self.contribution_work;
+        let dissipated = self.damping_dissipated + self.friction_dissipated;
         EnergyReport {
             time: self.time,
             kinetic,
             strain,
             other_potential,
+            damping_dissipated: self.damping_dissipated,
+            friction_dissipated: self.friction_dissipated,
             external_work,
-            dissipated: self.dissipated,
-            balance_error: kinetic + strain + other_potential + self.dissipated
+            dissipated,
+            balance_error: kinetic + strain + other_potential + dissipated
                 - external_work
                 - self.initial_energy,
         }

@@ -33,6 +33,9 @@ pub enum SolverError {
         /// The element error.
         source: fdem_elastic::ElasticError,
     },
+    /// Contact detection or evaluation refused the step (tunnelling, too deep, bad input).
+    #[error(transparent)]
+    Contact(#[from] fdem_contact::ContactError),
     /// The explicit integration became unstable; the run was stopped before writing garbage.
     #[error(
         "unstable integration at step {step}, t = {time:.6e} s: {reason} (dt used {dt:.6e} s, \

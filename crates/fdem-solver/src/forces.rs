@@ -34,13 +34,15 @@ pub struct StepBound {
     pub source: String,
 }
 
-/// Power exchanged by a contribution at the evaluated state (W), for energy bookkeeping.
+/// Energy exchanged by a contribution at the evaluated state, for energy bookkeeping.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Powers {
-    /// Power of external forces on the nodes (`sum f_ext . v`).
+    /// Power of external forces on the nodes (`sum f_ext . v`), W.
     pub external: f64,
-    /// Power dissipated (damping, friction), positive when energy is removed.
-    pub dissipated: f64,
+    /// Power dissipated by viscous damping, W (positive when energy is removed).
+    pub damping: f64,
+    /// Energy dissipated by friction sliding during this evaluation's step, J.
+    pub friction_energy: f64,
 }
 
 /// Something that adds forces to nodes.
@@ -57,6 +59,10 @@ pub trait ForceContribution: Send {
     ) -> Result<Powers, SolverError>;
     /// Energy stored by this contribution (strain energy, contact springs) in J.
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64;
+    /// The contribution as contact forces, if it is one (for contact outputs).
+    fn as_contact(&self) -> Option<&crate::ContactForces> {
+        None
+    }
 }
 
 /// The elements of one body with its node range.

@@ -16,6 +16,7 @@
 #![warn(missing_docs)]
 
 mod body;
+mod contact;
 mod engine;
 mod error;
 mod forces;
@@ -25,12 +26,13 @@ mod scene;
 mod state;
 
 pub use body::{Body, BodyMotion};
+pub use contact::ContactForces;
 pub use engine::{EnergyReport, Guard, Simulation, TimeStep};
 pub use error::SolverError;
 pub use forces::{BodyElements, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
-    DEFAULT_DT_SAFETY, DEFAULT_OUTPUTS, MaterialSection, MeshSection, ParticleSection, Scene,
-    SimulationSection,
+    ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
+    MeshSection, ParticleSection, Scene, SimulationSection, WallSection, WallType,
 };
 pub use state::NodeState;

@@ -53,20 +53,31 @@ pub fn write_atomically(path: &Path, text: &str) -> Result<(), SolverError> {
 }
 
 /// Header of `energy.csv`.
-pub const ENERGY_HEADER: &str = "time,kinetic,strain,external_work,dissipated,balance_error";
+pub const ENERGY_HEADER: &str = "time,kinetic,strain,external_work,dissipated,balance_error,contact,damping_dissipated,friction_dissipated";
+/// Header of `walls.csv`.
+pub const WALLS_HEADER: &str = "time,wall,fx,fy,fz";
+/// Header of the node-level contact snapshots `contacts/nodes_NNNNNN.csv`.
+pub const NODE_CONTACTS_HEADER: &str =
+    "time,node,body,other_body,other_wall,x,y,z,depth,fnx,fny,fnz,ftx,fty,ftz,sliding";
+/// Header of the pair-level contact snapshots `contacts/pairs_NNNNNN.csv`.
+pub const PAIR_CONTACTS_HEADER: &str =
+    "time,body,other_body,other_wall,fnx,fny,fnz,ftx,fty,ftz,nodes";
 /// Header of `bodies.csv`.
 pub const BODIES_HEADER: &str = "time,body,x,y,z,vx,vy,vz,wx,wy,wz";
 
 /// One `energy.csv` row. Values use Rust's shortest round-trip float formatting.
 pub fn energy_row(e: &EnergyReport) -> String {
     format!(
-        "{:e},{:e},{:e},{:e},{:e},{:e}",
+        "{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
         e.time,
         e.kinetic,
-        e.strain + e.other_potential,
+        e.strain,
         e.external_work,
         e.dissipated,
-        e.balance_error
+        e.balance_error,
+        e.other_potential,
+        e.damping_dissipated,
+        e.friction_dissipated
     )
 }
 
@@ -169,4 +180,70 @@ impl VtkSeries {
         write_pvd(&self.dir.join("frames.pvd"), &self.entries)?;
         Ok(())
     }
+}
+
+/// Appends one row per wall to `walls.csv`: the force the particles exert on it (N).
+pub fn wall_rows(sim: &Simulation, series: &mut CsvSeries) -> Result<(), SolverError> {
+    if let Some(contact) = sim.contact() {
+        for (w, f) in contact.model.wall_forces().iter().enumerate() {
+            series.row(&format!(
+                "{:e},{w},{:e},{:e},{:e}",
+                sim.time, f[0], f[1], f[2]
+            ))?;
+        }
+    }
+    Ok(())
+}
+
+fn counterpart_columns(c: fdem_contact::Counterpart) -> (String, String) {
+    match c {
+        fdem_contact::Counterpart::Body(b) => (b.to_string(), String::new()),
+        fdem_contact::Counterpart::Wall(w) => (String::new(), w.to_string()),
+    }
+}
+
+/// Writes the node-level and pair-level contact snapshot of output number `index` into
+/// `dir/contacts/` (each file atomically).
+pub fn contact_snapshot(sim: &Simulation, dir: &Path, index: usize) -> Result<(), SolverError> {
+    let Some(contact) = sim.contact() else {
+        return Ok(());
+    };
+    let folder = dir.join("contacts");
+    std::fs::create_dir_all(&folder)
+        .map_err(|e| SolverError::io("creating directory", &folder, e))?;
+    let t = sim.time;
+    let mut nodes = String::from(NODE_CONTACTS_HEADER);
+    nodes.push('\n');
+    for c in contact.model.node_contacts() {
+        let (body, wall) = counterpart_columns(c.counterpart);
+        let (p, n, s) = (c.position, c.normal_force, c.tangential_force);
+        nodes.push_str(&format!(
+            "{t:e},{},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
+            c.node,
+            c.body,
+            p[0],
+            p[1],
+            p[2],
+            c.depth,
+            n[0],
+            n[1],
+            n[2],
+            s[0],
+            s[1],
+            s[2],
+            u8::from(c.sliding)
+        ));
+    }
+    write_atomically(&folder.join(format!("nodes_{index:06}.csv")), &nodes)?;
+    let mut pairs = String::from(PAIR_CONTACTS_HEADER);
+    pairs.push('\n');
+    for p in contact.model.pair_sums() {
+        let (body, wall) = counterpart_columns(p.counterpart);
+        let (n, s) = (p.normal_force, p.tangential_force);
+        pairs.push_str(&format!(
+            "{t:e},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
+            p.body, n[0], n[1], n[2], s[0], s[1], s[2], p.nodes
+        ));
+    }
+    write_atomically(&folder.join(format!("pairs_{index:06}.csv")), &pairs)
 }

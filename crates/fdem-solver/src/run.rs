@@ -3,7 +3,8 @@
 use crate::SolverError;
 use crate::engine::Simulation;
 use crate::output::{
-    BODIES_HEADER, CsvSeries, ENERGY_HEADER, VtkSeries, body_rows, energy_row, write_atomically,
+    BODIES_HEADER, CsvSeries, ENERGY_HEADER, VtkSeries, WALLS_HEADER, body_rows, contact_snapshot,
+    energy_row, wall_rows, write_atomically,
 };
 use crate::scene::Scene;
 use serde::Serialize;
@@ -18,6 +19,8 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Write VTU frames and a `.pvd` collection.
     pub vtk: bool,
+    /// Write node- and pair-level contact snapshots at every output.
+    pub contacts: bool,
 }
 
 /// Receives progress reports; the CLI draws a progress bar from them.
@@ -120,6 +123,7 @@ pub fn run(
     observer.start(&plan);
     let mut energy = CsvSeries::create(dir, "energy.csv", ENERGY_HEADER)?;
     let mut bodies = CsvSeries::create(dir, "bodies.csv", BODIES_HEADER)?;
+    let mut walls = CsvSeries::create(dir, "walls.csv", WALLS_HEADER)?;
     let mut vtk = if options.vtk {
         Some(VtkSeries::create(dir)?)
     } else {
@@ -132,15 +136,21 @@ pub fn run(
     let mut outputs = 0usize;
     let mut max_rel = 0.0f64;
     let mut next_output = 0.0;
+    let contacts = options.contacts;
     let mut write_output = |sim: &Simulation,
                             energy: &mut CsvSeries,
                             bodies: &mut CsvSeries,
+                            walls: &mut CsvSeries,
                             vtk: &mut Option<VtkSeries>|
      -> Result<(), SolverError> {
         let e = sim.check_energy()?;
         max_rel = max_rel.max(sim.relative_balance_error(&e));
         energy.row(&energy_row(&e))?;
         body_rows(sim, bodies)?;
+        wall_rows(sim, walls)?;
+        if contacts {
+            contact_snapshot(sim, dir, outputs)?;
+        }
         if let Some(v) = vtk.as_mut() {
             v.frame(sim)?;
         }
@@ -150,7 +160,8 @@ pub fn run(
 
     let mut outcome: Result<(), SolverError> = Ok(());
     // Output at t = 0, then step.
-    outcome = outcome.and_then(|_| write_output(&sim, &mut energy, &mut bodies, &mut vtk));
+    outcome =
+        outcome.and_then(|_| write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk));
     next_output += interval;
     while outcome.is_ok() && sim.step < steps {
         if interrupt.load(Ordering::Relaxed) {
@@ -166,7 +177,7 @@ pub fn run(
         }
         let last = sim.step == steps;
         if last || sim.time >= next_output - 0.5 * sim.dt {
-            outcome = write_output(&sim, &mut energy, &mut bodies, &mut vtk);
+            outcome = write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk);
             while next_output <= sim.time + 0.5 * sim.dt {
                 next_output += interval;
             }
@@ -204,6 +215,7 @@ pub fn run(
     };
     energy.finish()?;
     bodies.finish()?;
+    walls.finish()?;
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| SolverError::InvalidScene(format!("serializing the summary: {e}")))?;
     write_atomically(&dir.join("summary.json"), &json)?;

@@ -24,6 +24,135 @@ pub struct Scene {
     /// `[[particle]]`: the particles.
     #[serde(rename = "particle", default)]
     pub particles: Vec<ParticleSection>,
+    /// `[contact]`: the penalty contact law; default the paper's Table 3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact: Option<ContactSection>,
+    /// `[[wall]]`: rigid walls.
+    #[serde(rename = "wall", default, skip_serializing_if = "Vec::is_empty")]
+    pub walls: Vec<WallSection>,
+}
+
+/// `[contact]`: penalty contact (MODEL.md section 2, paper eqs 1-3, Table 3 defaults).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSection {
+    /// Contact on or off; default on.
+    #[serde(default = "default_true")]
+    pub enabled: bool,
+    /// Normal penalty per unit area p_n (N/m^3), > 0; default 1.8e11.
+    #[serde(default = "default_normal_penalty", deserialize_with = "positive")]
+    pub normal_penalty: f64,
+    /// Tangential / normal penalty ratio, > 0; default 1.
+    #[serde(default = "default_one", deserialize_with = "positive")]
+    pub penalty_ratio: f64,
+    /// Coulomb friction coefficient, >= 0; default 0.3.
+    #[serde(default = "default_friction", deserialize_with = "non_negative")]
+    pub friction: f64,
+    /// Normal damping ratio beta_n, >= 0; default 0.2.
+    #[serde(default = "default_damping", deserialize_with = "non_negative")]
+    pub damping: f64,
+    /// Tangential / normal damping ratio, >= 0; default 1.
+    #[serde(default = "default_one", deserialize_with = "non_negative")]
+    pub damping_ratio: f64,
+    /// Contact margin (m): Verlet skin, depth limit and tunnelling scale; default a
+    /// quarter of the shortest surface edge of the scene.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub margin: Option<f64>,
+}
+
+impl Default for ContactSection {
+    fn default() -> Self {
+        ContactSection {
+            enabled: true,
+            normal_penalty: default_normal_penalty(),
+            penalty_ratio: 1.0,
+            friction: default_friction(),
+            damping: default_damping(),
+            damping_ratio: 1.0,
+            margin: None,
+        }
+    }
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_one() -> f64 {
+    1.0
+}
+fn default_normal_penalty() -> f64 {
+    1.8e11
+}
+fn default_friction() -> f64 {
+    0.3
+}
+fn default_damping() -> f64 {
+    0.2
+}
+
+/// Shape of a `[[wall]]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WallType {
+    /// Infinite plane through `point` with `normal` pointing to the particles' side.
+    Plane,
+    /// Infinite cylinder (`axis_point`, `axis`, `radius`); particles live inside.
+    Cylinder,
+}
+
+/// `[[wall]]`: a rigid wall moving at constant velocity.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallSection {
+    /// `"plane"` or `"cylinder"`.
+    #[serde(rename = "type")]
+    pub kind: WallType,
+    /// Plane: a point on it (m).
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub point: Option<[f64; 3]>,
+    /// Plane: normal towards the particles (any length > 0).
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub normal: Option<[f64; 3]>,
+    /// Cylinder: a point on the axis (m).
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub axis_point: Option<[f64; 3]>,
+    /// Cylinder: axis direction (any length > 0).
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub axis: Option<[f64; 3]>,
+    /// Cylinder: inner radius (m), > 0.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub radius: Option<f64>,
+    /// Constant velocity (m/s); default zero.
+    #[serde(
+        default,
+        deserialize_with = "vector_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub velocity: Option<[f64; 3]>,
 }
 
 /// `[simulation]`.
@@ -157,6 +286,8 @@ fn default_order() -> ElementOrder {
 
 /// Default fraction of the stable bound.
 pub const DEFAULT_DT_SAFETY: f64 = 0.5;
+/// Default contact margin as a fraction of the shortest surface edge of the scene.
+pub const DEFAULT_MARGIN_FRACTION: f64 = 0.25;
 /// Default number of outputs over the duration.
 pub const DEFAULT_OUTPUTS: f64 = 100.0;
 
@@ -167,6 +298,17 @@ fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     } else {
         Err(D::Error::custom(format!(
             "must be a positive finite number (SI units), got {v}"
+        )))
+    }
+}
+
+fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "must be a finite number >= 0, got {v}"
         )))
     }
 }
@@ -234,6 +376,9 @@ fn quaternion_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D
         )))
     }
 }
+
+/// A key name and whether the table has it.
+type KeyPresence<'a> = (&'a str, bool);
 
 /// 1-based line and column of byte `offset` in `text`.
 fn line_column(text: &str, offset: usize) -> (usize, usize) {
@@ -307,6 +452,43 @@ impl Scene {
                 ));
             }
         }
+        for (i, w) in self.walls.iter().enumerate() {
+            let (needed, unused): (&[KeyPresence], &[KeyPresence]) = match w.kind {
+                WallType::Plane => (
+                    &[("point", w.point.is_some()), ("normal", w.normal.is_some())],
+                    &[
+                        ("axis_point", w.axis_point.is_some()),
+                        ("axis", w.axis.is_some()),
+                        ("radius", w.radius.is_some()),
+                    ],
+                ),
+                WallType::Cylinder => (
+                    &[
+                        ("axis_point", w.axis_point.is_some()),
+                        ("axis", w.axis.is_some()),
+                        ("radius", w.radius.is_some()),
+                    ],
+                    &[("point", w.point.is_some()), ("normal", w.normal.is_some())],
+                ),
+            };
+            for (key, present) in needed {
+                if !present {
+                    return Err(fail(
+                        format!("wall[{i}].{key}"),
+                        format!("a {:?} wall needs `{key}`", w.kind).to_lowercase(),
+                    ));
+                }
+            }
+            for (key, present) in unused {
+                if *present {
+                    return Err(fail(
+                        format!("wall[{i}].{key}"),
+                        format!("`{key}` does not apply to a {:?} wall; remove it", w.kind)
+                            .to_lowercase(),
+                    ));
+                }
+            }
+        }
         let s = &self.simulation;
         if let Some(interval) = s.output_interval {
             if interval > s.duration {
@@ -342,6 +524,61 @@ impl Scene {
         self.simulation
             .output_interval
             .unwrap_or(self.simulation.duration / DEFAULT_OUTPUTS)
+    }
+
+    /// The contact parameters in force (the `[contact]` table or the paper's defaults).
+    pub fn contact_section(&self) -> ContactSection {
+        self.contact.clone().unwrap_or_default()
+    }
+
+    /// The contact contribution of the scene (none when `[contact] enabled = false`).
+    fn contact_forces(
+        &self,
+        assembly: &MeshAssembly,
+        masses: &[f64],
+    ) -> Result<Vec<Box<dyn crate::ForceContribution>>, SolverError> {
+        let c = self.contact_section();
+        // A lone particle with no wall has nothing to touch: model no contact.
+        if !c.enabled || (self.particles.len() < 2 && self.walls.is_empty()) {
+            return Ok(Vec::new());
+        }
+        let params = fdem_contact::ContactParams {
+            normal_penalty: c.normal_penalty,
+            penalty_ratio: c.penalty_ratio,
+            friction: c.friction,
+            damping: c.damping,
+            damping_ratio: c.damping_ratio,
+        };
+        let walls = self
+            .walls
+            .iter()
+            .map(|w| {
+                let wall = match w.kind {
+                    WallType::Plane => fdem_contact::Wall::plane(
+                        w.point.unwrap_or_default(),
+                        w.normal.unwrap_or_default(),
+                    ),
+                    WallType::Cylinder => fdem_contact::Wall::cylinder(
+                        w.axis_point.unwrap_or_default(),
+                        w.axis.unwrap_or_default(),
+                        w.radius.unwrap_or_default(),
+                    ),
+                };
+                wall.moving(w.velocity.unwrap_or([0.0; 3]))
+            })
+            .collect();
+        let surface = fdem_contact::ContactSurface::from_assembly(assembly)?;
+        let margin = match c.margin {
+            Some(m) => m,
+            None => surface
+                .shortest_edge(&assembly.nodes)
+                .map(|e| DEFAULT_MARGIN_FRACTION * e)
+                .ok_or_else(|| {
+                    SolverError::InvalidScene("the scene has no surface edges".into())
+                })?,
+        };
+        let model = fdem_contact::ContactModel::new(params, surface, walls, masses, margin)?;
+        Ok(vec![Box::new(crate::ContactForces::new(model))])
     }
 
     /// Builds the meshes, masses and initial state and returns a ready simulation.
@@ -400,13 +637,14 @@ impl Scene {
                 state.velocities[i] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
             }
         }
+        let contributions = self.contact_forces(&assembly, &state.masses)?;
         let mut sim = Simulation::new(
             state,
             bodies,
             npe,
             assembly.elements,
             elastic,
-            Vec::new(),
+            contributions,
             self.simulation.gravity.unwrap_or([0.0; 3]),
             self.time_step(),
         )?;

@@ -200,6 +200,7 @@ fn a_run_writes_complete_consistent_outputs() {
     let options = RunOptions {
         out_dir: dir.path().to_path_buf(),
         vtk: true,
+        contacts: true,
     };
     let summary = run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
     assert_eq!(summary.status, "completed");
@@ -266,6 +267,9 @@ fn a_free_body_obeys_exact_scaling() {
         p.diameter *= h;
         p.center = p.center.map(|x| x * h);
         p.angular_velocity = p.angular_velocity.map(|w| w.map(|x| x / h));
+        let mut contact = scaled.contact_section();
+        contact.normal_penalty /= h;
+        scaled.contact = Some(contact);
         let (mut a, mut b) = (base.build().unwrap(), scaled.build().unwrap());
         assert!(
             (b.dt / (a.dt * h) - 1.0).abs() < 1e-12,

@@ -19,6 +19,9 @@ pub struct RunArgs {
     /// Also write VTU frames and a ParaView collection (frames.pvd).
     #[arg(long)]
     vtk: bool,
+    /// Also write node- and pair-level contact snapshots (contacts/*.csv) at every output.
+    #[arg(long)]
+    contacts: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -79,6 +82,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let options = RunOptions {
         out_dir: args.out.clone(),
         vtk: args.vtk,
+        contacts: args.contacts,
     };
     let result = run_scene(&scene, &options, &mut progress, &interrupt);
     if let Some(bar) = &progress.bar {

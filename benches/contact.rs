@@ -1,0 +1,240 @@
+//! Contact throughput: `add_forces` per step on dense packings, broad-phase rebuilds, and
+//! the two narrow-phase kernels (hand-written projection vs parry3d-f64).
+//!
+//! `cargo bench -p fdem-benches --bench contact` builds simple cubic lattices of level-1
+//! linear spheres (d = 15 mm, identity orientation) whose axis vertices overlap their
+//! neighbours by 0.3 of the contact margin, with small random velocities, and times one
+//! evaluation with 1 and 2 rayon threads. Criterion's throughput is in surface-node
+//! contact evaluations per second. `FDEM_BENCH_64K=1` adds the 64k-particle lattice
+//! (2.7 M surface nodes, about 3 GB).
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use fdem_contact::narrow::{project_hand, project_parry};
+use fdem_contact::{ContactModel, ContactParams, ContactSurface, ProjectionKernel};
+use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec, sphere_mesh};
+
+struct Packing {
+    positions: Vec<[f64; 3]>,
+    velocities: Vec<[f64; 3]>,
+    model: ContactModel,
+    surface_nodes: usize,
+}
+
+/// `n^3` spheres on a simple cubic lattice, overlapping by 0.3 margin along the axes.
+fn packing(n: usize) -> Packing {
+    let d = 0.015;
+    let mesh = sphere_mesh(&SphereSpec {
+        level: 1,
+        order: ElementOrder::Linear,
+        diameter: d,
+        sizing: Sizing::Inscribed,
+    })
+    .expect("sphere");
+    let half_extent = mesh.nodes.iter().map(|x| x[0]).fold(f64::MIN, f64::max);
+    let template = ContactSurface {
+        triangles: mesh.surface.triangles.clone(),
+        triangle_body: vec![0; mesh.surface.triangles.len()],
+        surface_nodes: mesh.surface.nodes.clone(),
+        node_body: vec![0; mesh.surface.nodes.len()],
+        control_areas: mesh.surface.control_areas.clone(),
+    };
+    let margin = ContactModel::suggested_margin(&template, &mesh.nodes).expect("margin");
+    let spacing = 2.0 * half_extent - 0.3 * margin;
+    let mut assembly = MeshAssembly::new();
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                let t = [i, j, k].map(|c| c as f64 * spacing);
+                assembly
+                    .push_instance(&mesh, &Placement::at(t))
+                    .expect("placement");
+            }
+        }
+    }
+    let node_mass = 2650.0 * mesh.volume() / mesh.n_nodes() as f64;
+    let masses = vec![node_mass; assembly.n_nodes()];
+    // Small deterministic velocities (mm/s) so that damping and friction paths run.
+    let velocities = assembly
+        .nodes
+        .iter()
+        .map(|x| x.map(|c| 1e-3 * (c * 1e3).sin()))
+        .collect();
+    let surface = ContactSurface::from_assembly(&assembly).expect("surface");
+    let surface_nodes = surface.n_surface_nodes();
+    let model = ContactModel::new(ContactParams::default(), surface, vec![], &masses, margin)
+        .expect("model");
+    Packing {
+        positions: assembly.nodes,
+        velocities,
+        model,
+        surface_nodes,
+    }
+}
+
+fn sizes() -> Vec<(usize, &'static str)> {
+    let mut s = vec![(10, "1k"), (20, "8k")];
+    if std::env::var_os("FDEM_BENCH_64K").is_some() {
+        s.push((40, "64k"));
+    }
+    s
+}
+
+fn pools() -> Vec<(usize, rayon::ThreadPool)> {
+    [1usize, 2]
+        .into_iter()
+        .map(|t| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .expect("thread pool");
+            (t, pool)
+        })
+        .collect()
+}
+
+fn add_forces(c: &mut Criterion) {
+    let mut group = c.benchmark_group("contact_step");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(3));
+    group.warm_up_time(Duration::from_secs(1));
+    for (n, label) in sizes() {
+        let mut p = packing(n);
+        let mut forces = vec![[0.0; 3]; p.positions.len()];
+        let first = p
+            .model
+            .add_forces(&p.positions, &p.velocities, 0.0, 1e-7, &mut forces)
+            .expect("first evaluation");
+        eprintln!(
+            "{label}: {} surface nodes, {} candidate pairs, {} contacts, margin {:.3e} m, cell {:.3e} m",
+            p.surface_nodes,
+            first.candidate_pairs,
+            first.contacts,
+            p.model.margin(),
+            p.model.cell_size()
+        );
+        group.throughput(Throughput::Elements(p.surface_nodes as u64));
+        for (threads, pool) in pools() {
+            for kernel in [ProjectionKernel::Hand, ProjectionKernel::Parry] {
+                p.model.set_projection_kernel(kernel);
+                let id = BenchmarkId::new(format!("{kernel:?}/{threads}t"), label);
+                group.bench_function(id, |b| {
+                    pool.install(|| {
+                        b.iter(|| {
+                            let r = p
+                                .model
+                                .add_forces(&p.positions, &p.velocities, 0.0, 1e-7, &mut forces)
+                                .expect("evaluation");
+                            black_box(r.contacts)
+                        })
+                    })
+                });
+            }
+            p.model.set_projection_kernel(ProjectionKernel::Hand);
+            let id = BenchmarkId::new(format!("rebuild+step/{threads}t"), label);
+            group.bench_function(id, |b| {
+                pool.install(|| {
+                    b.iter(|| {
+                        p.model.request_rebuild();
+                        let r = p
+                            .model
+                            .add_forces(&p.positions, &p.velocities, 0.0, 1e-7, &mut forces)
+                            .expect("evaluation");
+                        black_box(r.rebuilt)
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+/// The kernels alone on the candidate pairs of the 1k packing (node, face) in visiting
+/// order, single-threaded.
+fn kernels(c: &mut Criterion) {
+    let mut p = packing(10);
+    let mut forces = vec![[0.0; 3]; p.positions.len()];
+    p.model
+        .add_forces(&p.positions, &p.velocities, 0.0, 1e-7, &mut forces)
+        .expect("evaluation");
+    let surface = p.model.surface().clone();
+    let pairs: Vec<([f64; 3], [[f64; 3]; 3])> = p
+        .model
+        .candidate_pairs()
+        .into_iter()
+        .map(|(node, t)| {
+            (
+                p.positions[node],
+                surface.triangles[t].map(|i| p.positions[i]),
+            )
+        })
+        .collect();
+    let limit = p.model.depth_limit();
+    let hits = pairs
+        .iter()
+        .filter(|(x, f)| project_hand(*x, *f, limit).is_some())
+        .count();
+    eprintln!("kernels: {} candidate pairs, {hits} hits", pairs.len());
+    let mut group = c.benchmark_group("narrow_kernel");
+    group.sample_size(20);
+    group.measurement_time(Duration::from_secs(3));
+    group.throughput(Throughput::Elements(pairs.len() as u64));
+    group.bench_function("hand", |b| {
+        b.iter(|| {
+            pairs
+                .iter()
+                .filter(|(x, f)| project_hand(*x, *f, limit).is_some())
+                .count()
+        })
+    });
+    group.bench_function("parry", |b| {
+        b.iter(|| {
+            pairs
+                .iter()
+                .filter(|(x, f)| project_parry(*x, *f, limit).is_some())
+                .count()
+        })
+    });
+    // Worst case for the early exit: every node behind the face plane (mirror the nodes
+    // in front through the plane), so both kernels compute the full location.
+    let behind: Vec<([f64; 3], [[f64; 3]; 3])> = pairs
+        .iter()
+        .map(|&(x, [a, b, c])| {
+            let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+            let n = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
+            let nn = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let u = n.map(|c| c / nn);
+            let s = (x[0] - a[0]) * u[0] + (x[1] - a[1]) * u[1] + (x[2] - a[2]) * u[2];
+            // Put the node 0.1 limit behind the plane, keeping its foot.
+            let y = [0, 1, 2].map(|k| x[k] - (s + 0.1 * limit) * u[k]);
+            (y, [a, b, c])
+        })
+        .collect();
+    group.bench_function("hand_all_behind", |b| {
+        b.iter(|| {
+            behind
+                .iter()
+                .filter(|(x, f)| project_hand(*x, *f, limit).is_some())
+                .count()
+        })
+    });
+    group.bench_function("parry_all_behind", |b| {
+        b.iter(|| {
+            behind
+                .iter()
+                .filter(|(x, f)| project_parry(*x, *f, limit).is_some())
+                .count()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, kernels, add_forces);
+criterion_main!(benches);

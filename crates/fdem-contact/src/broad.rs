@@ -1,0 +1,415 @@
+//! Broad phase: a spatial hash over the surface triangles with a Verlet skin.
+//!
+//! Every triangle's bounding box, enlarged by `2 margin` (plus the barycentric tolerance
+//! band), is registered in every cell of a uniform grid it overlaps; the cell size is the
+//! largest enlarged box extent, so a box overlaps at most 2 cells per axis. Cells are
+//! numbered densely (`i + nx (j + ny k)`) when the occupied region holds at most 4 cells
+//! per triangle, and otherwise through their packed integer coordinates in a deterministic
+//! open-addressing table (fixed hash function, slots numbered in insertion order); their
+//! triangles are stored as compressed rows, so a build costs O(triangles + surface
+//! nodes). A surface node's candidates are the triangles of
+//! other bodies listed in its own cell whose enlarged box contains it, sorted by (owner
+//! body, triangle).
+//!
+//! Verlet skin: while every surface node stays within `margin / 2` of its position at the
+//! last build, a node and a triangle that were not candidates are still more than `margin`
+//! apart (each moved less than `margin / 2`), and the depth limit is `margin`, so no
+//! contact can be missed. The model rebuilds as soon as one node has moved farther.
+
+use rayon::prelude::*;
+
+use crate::ContactSurface;
+use crate::narrow::BARYCENTRIC_TOLERANCE;
+
+/// Surface nodes per parallel work item (fixed, so the chunking never depends on the
+/// thread count).
+pub(crate) const CHUNK: usize = 512;
+
+const EMPTY: u64 = u64::MAX;
+const COORD_BITS: u32 = 21;
+const COORD_MASK: u64 = (1 << COORD_BITS) - 1;
+
+/// splitmix64 finaliser: a fixed, seedless hash, so the table layout is the same on every
+/// run.
+#[inline(always)]
+fn hash(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Packs integer cell coordinates into 63 bits (21 per axis). Coordinates that wrap make
+/// far-apart cells share a key; that only adds triangles to a cell, and the exact box test
+/// removes them again.
+#[inline(always)]
+fn pack(i: i64, j: i64, k: i64) -> u64 {
+    (i as u64 & COORD_MASK)
+        | ((j as u64 & COORD_MASK) << COORD_BITS)
+        | ((k as u64 & COORD_MASK) << (2 * COORD_BITS))
+}
+
+/// Deterministic open-addressing map from packed cell key to a dense cell number.
+#[derive(Clone, Debug, Default)]
+struct CellTable {
+    keys: Vec<u64>,
+    values: Vec<u32>,
+    len: usize,
+}
+
+impl CellTable {
+    fn reset(&mut self, expected: usize) {
+        let cap = (expected.max(8) * 2).next_power_of_two();
+        self.keys.clear();
+        self.keys.resize(cap, EMPTY);
+        self.values.clear();
+        self.values.resize(cap, 0);
+        self.len = 0;
+    }
+
+    #[inline]
+    fn get(&self, key: u64) -> Option<u32> {
+        let mask = self.keys.len() - 1;
+        let mut i = hash(key) as usize & mask;
+        loop {
+            let k = self.keys[i];
+            if k == key {
+                return Some(self.values[i]);
+            }
+            if k == EMPTY {
+                return None;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    /// Returns the cell number of `key`, numbering a new key `len`.
+    fn insert(&mut self, key: u64) -> u32 {
+        if (self.len + 1) * 2 > self.keys.len() {
+            self.grow();
+        }
+        let mask = self.keys.len() - 1;
+        let mut i = hash(key) as usize & mask;
+        loop {
+            let k = self.keys[i];
+            if k == key {
+                return self.values[i];
+            }
+            if k == EMPTY {
+                self.keys[i] = key;
+                let v = self.len as u32;
+                self.values[i] = v;
+                self.len += 1;
+                return v;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    fn grow(&mut self) {
+        let old_keys = std::mem::take(&mut self.keys);
+        let old_values = std::mem::take(&mut self.values);
+        let cap = old_keys.len().max(8) * 2;
+        self.keys = vec![EMPTY; cap];
+        self.values = vec![0; cap];
+        let mask = cap - 1;
+        for (k, v) in old_keys.into_iter().zip(old_values) {
+            if k != EMPTY {
+                let mut i = hash(k) as usize & mask;
+                while self.keys[i] != EMPTY {
+                    i = (i + 1) & mask;
+                }
+                self.keys[i] = k;
+                self.values[i] = v;
+            }
+        }
+    }
+}
+
+/// One candidate face of a surface node, with what the narrow phase needs inline (so the
+/// hot loop reads it sequentially instead of chasing triangle -> body -> node ids).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Candidate {
+    /// Global node ids of the face.
+    pub(crate) nodes: [u32; 3],
+    /// Triangle index.
+    pub(crate) triangle: u32,
+    /// Owner body of the triangle.
+    pub(crate) body: u32,
+}
+
+/// Grid, reference positions and candidate lists (compressed rows per surface node).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BroadPhase {
+    /// Whether a build has happened.
+    pub(crate) built: bool,
+    /// Number of builds so far.
+    pub(crate) builds: usize,
+    /// Enlargement of the triangle boxes at the last build (m).
+    pub(crate) enlargement: f64,
+    /// Cell size at the last build (m).
+    pub(crate) cell_size: f64,
+    /// Surface node positions at the last build.
+    pub(crate) reference: Vec<[f64; 3]>,
+    /// Candidates of surface node `k`: `cand[cand_start[k]..cand_start[k + 1]]`.
+    pub(crate) cand_start: Vec<usize>,
+    /// Candidate faces, sorted by (owner body, triangle) per node.
+    pub(crate) cand: Vec<Candidate>,
+    boxes: Vec<[f64; 6]>,
+    layout: Layout,
+    table: CellTable,
+    cell_start: Vec<usize>,
+    cell_cursor: Vec<usize>,
+    cell_tris: Vec<u32>,
+    chunk_tris: Vec<Vec<u32>>,
+    chunk_counts: Vec<Vec<u32>>,
+}
+
+/// How cells are numbered: a dense box of cells when the occupied region is compact
+/// (cheap index arithmetic), else the hash table (any spread of positions).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Layout {
+    #[default]
+    Hash,
+    Dense {
+        dims: [i64; 3],
+    },
+}
+
+/// Dense layouts are used up to this many cells per triangle (and at least this floor).
+const DENSE_CELLS_PER_TRIANGLE: usize = 4;
+const DENSE_MIN_CELLS: usize = 1 << 12;
+
+impl BroadPhase {
+    /// The cell number of integer cell coordinates, `None` for an empty cell.
+    #[inline(always)]
+    fn lookup(&self, c: [i64; 3]) -> Option<usize> {
+        lookup(self.layout, &self.table, c)
+    }
+}
+
+#[inline(always)]
+fn lookup(layout: Layout, table: &CellTable, c: [i64; 3]) -> Option<usize> {
+    match layout {
+        Layout::Dense { dims } => {
+            if (0..3).all(|d| c[d] >= 0 && c[d] < dims[d]) {
+                Some((c[0] + dims[0] * (c[1] + dims[1] * c[2])) as usize)
+            } else {
+                None
+            }
+        }
+        Layout::Hash => table.get(pack(c[0], c[1], c[2])).map(|v| v as usize),
+    }
+}
+
+#[inline(always)]
+fn cell_of(x: [f64; 3], origin: [f64; 3], inv: f64) -> [i64; 3] {
+    [
+        ((x[0] - origin[0]) * inv).floor() as i64,
+        ((x[1] - origin[1]) * inv).floor() as i64,
+        ((x[2] - origin[2]) * inv).floor() as i64,
+    ]
+}
+
+#[inline(always)]
+fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
+    x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
+}
+
+impl BroadPhase {
+    /// Rebuilds grid and candidates from the current positions. `margin` is the Verlet
+    /// skin; positions must be finite (the model checks them first).
+    pub(crate) fn build(&mut self, positions: &[[f64; 3]], surface: &ContactSurface, margin: f64) {
+        let n_surface = surface.surface_nodes.len();
+        self.reference.clear();
+        self.reference
+            .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
+
+        // Raw triangle boxes and the largest extent.
+        self.boxes.clear();
+        let mut largest = 0.0_f64;
+        for tri in &surface.triangles {
+            let [a, b, c] = tri.map(|i| positions[i]);
+            let mut bx = [0.0; 6];
+            for d in 0..3 {
+                bx[d] = a[d].min(b[d]).min(c[d]);
+                bx[d + 3] = a[d].max(b[d]).max(c[d]);
+                largest = largest.max(bx[d + 3] - bx[d]);
+            }
+            self.boxes.push(bx);
+        }
+        // 2 margin: both the node and the face may move margin/2 before the next build, and
+        // the node may sit up to the depth limit (= margin) behind the face; the tolerance
+        // band lets a foot fall slightly outside the triangle.
+        let e = 2.0 * margin + 2.0 * BARYCENTRIC_TOLERANCE * largest;
+        self.enlargement = e;
+        for bx in &mut self.boxes {
+            for d in 0..3 {
+                bx[d] -= e;
+                bx[d + 3] += e;
+            }
+        }
+        let cell = largest + 2.0 * e;
+        self.cell_size = cell;
+        let inv = 1.0 / cell;
+        let mut origin = [f64::INFINITY; 3];
+        let mut top = [f64::NEG_INFINITY; 3];
+        for x in &self.reference {
+            for d in 0..3 {
+                origin[d] = origin[d].min(x[d]);
+                top[d] = top[d].max(x[d]);
+            }
+        }
+        for bx in &self.boxes {
+            for d in 0..3 {
+                origin[d] = origin[d].min(bx[d]);
+                top[d] = top[d].max(bx[d + 3]);
+            }
+        }
+        if !origin.iter().chain(&top).all(|o| o.is_finite()) {
+            origin = [0.0; 3];
+            top = [0.0; 3];
+        }
+        let extent = cell_of(top, origin, inv);
+        let dims = extent.map(|e| e.saturating_add(1).max(1));
+        let budget = (DENSE_CELLS_PER_TRIANGLE * surface.triangles.len()).max(DENSE_MIN_CELLS);
+        let cells = dims
+            .iter()
+            .try_fold(1usize, |acc, &n| acc.checked_mul(usize::try_from(n).ok()?));
+        self.layout = match cells {
+            Some(n) if n <= budget => Layout::Dense { dims },
+            _ => Layout::Hash,
+        };
+
+        // Count pass: number every overlapped cell, count its triangles.
+        self.cell_start.clear();
+        match self.layout {
+            Layout::Dense { .. } => {
+                self.cell_start.resize(cells.unwrap_or(0), 0);
+                for bx in &self.boxes {
+                    let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
+                    let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
+                    for k in lo[2]..=hi[2] {
+                        for j in lo[1]..=hi[1] {
+                            for i in lo[0]..=hi[0] {
+                                if let Some(c) = lookup(self.layout, &self.table, [i, j, k]) {
+                                    self.cell_start[c] += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            Layout::Hash => {
+                self.table.reset(surface.triangles.len() / 2);
+                for bx in &self.boxes {
+                    let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
+                    let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
+                    for k in lo[2]..=hi[2] {
+                        for j in lo[1]..=hi[1] {
+                            for i in lo[0]..=hi[0] {
+                                let c = self.table.insert(pack(i, j, k)) as usize;
+                                if c == self.cell_start.len() {
+                                    self.cell_start.push(0);
+                                }
+                                self.cell_start[c] += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Prefix sums into row starts.
+        let mut running = 0usize;
+        for s in &mut self.cell_start {
+            let count = *s;
+            *s = running;
+            running += count;
+        }
+        self.cell_start.push(running);
+        self.cell_cursor.clear();
+        self.cell_cursor.extend_from_slice(&self.cell_start);
+        self.cell_tris.clear();
+        self.cell_tris.resize(running, 0);
+        // Fill pass, triangles in increasing order within each cell.
+        for (t, bx) in self.boxes.iter().enumerate() {
+            let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
+            let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        if let Some(c) = self.lookup([i, j, k]) {
+                            let slot = &mut self.cell_cursor[c];
+                            self.cell_tris[*slot] = t as u32;
+                            *slot += 1;
+                        }
+                    }
+                }
+            }
+        }
+
+        // Query pass, parallel over fixed chunks of surface nodes.
+        let n_chunks = n_surface.div_ceil(CHUNK);
+        self.chunk_tris.resize_with(n_chunks, Vec::new);
+        self.chunk_counts.resize_with(n_chunks, Vec::new);
+        let reference = &self.reference;
+        let boxes = &self.boxes;
+        let table = &self.table;
+        let layout = self.layout;
+        let cell_start = &self.cell_start;
+        let cell_tris = &self.cell_tris;
+        self.chunk_tris
+            .par_iter_mut()
+            .zip(self.chunk_counts.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, (tris, counts))| {
+                tris.clear();
+                counts.clear();
+                let start = chunk * CHUNK;
+                let end = (start + CHUNK).min(n_surface);
+                for (offset, &x) in reference[start..end].iter().enumerate() {
+                    let k = start + offset;
+                    let body = surface.node_body[k];
+                    let before = tris.len();
+                    let c = cell_of(x, origin, inv);
+                    if let Some(cell) = lookup(layout, table, c) {
+                        let row = cell_start[cell]..cell_start[cell + 1];
+                        for &t in &cell_tris[row] {
+                            let tu = t as usize;
+                            if surface.triangle_body[tu] != body && in_box(&boxes[tu], x) {
+                                tris.push(t);
+                            }
+                        }
+                    }
+                    let mine = &mut tris[before..];
+                    if !mine.is_sorted_by_key(|&t| surface.triangle_body[t as usize]) {
+                        mine.sort_unstable_by_key(|&t| (surface.triangle_body[t as usize], t));
+                    }
+                    counts.push((tris.len() - before) as u32);
+                }
+            });
+        self.cand_start.clear();
+        self.cand.clear();
+        let mut total = 0usize;
+        self.cand_start.push(0);
+        for (tris, counts) in self.chunk_tris.iter().zip(&self.chunk_counts) {
+            for &c in counts {
+                total += c as usize;
+                self.cand_start.push(total);
+            }
+            self.cand.extend(tris.iter().map(|&t| Candidate {
+                // Node ids fit in u32: ContactSurface::validate checks the node count.
+                nodes: surface.triangles[t as usize].map(|i| i as u32),
+                triangle: t,
+                body: surface.triangle_body[t as usize],
+            }));
+        }
+        self.built = true;
+        self.builds += 1;
+    }
+
+    /// Candidate faces of surface node `k`.
+    #[inline]
+    pub(crate) fn candidates(&self, k: usize) -> &[Candidate] {
+        &self.cand[self.cand_start[k]..self.cand_start[k + 1]]
+    }
+}

@@ -1,0 +1,197 @@
+//! The crate's error type.
+
+use crate::Counterpart;
+
+/// Everything that can go wrong while setting up or evaluating contact.
+///
+/// Every message says what was wrong, where (field, node, body, triangle, wall) and what
+/// would fix it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ContactError {
+    /// A contact parameter is out of its range.
+    #[error(
+        "contact parameter `{field}` = {value} is invalid: it must be {requirement}; \
+         fix it in the contact parameters (paper Table 3 gives normal_penalty 1.8e11 N/m^3, \
+         penalty_ratio 1, friction 0.3, damping 0.2, damping_ratio 1)"
+    )]
+    InvalidParameter {
+        /// Name of the field of [`crate::ContactParams`].
+        field: &'static str,
+        /// The value that was given.
+        value: f64,
+        /// What the value must satisfy.
+        requirement: &'static str,
+    },
+
+    /// Two arrays that must be parallel have different lengths.
+    #[error(
+        "`{array}` has {found} entries but {expected} were expected ({reason}); \
+         build the arrays from the same mesh assembly"
+    )]
+    LengthMismatch {
+        /// Name of the offending array.
+        array: &'static str,
+        /// Required length.
+        expected: usize,
+        /// Actual length.
+        found: usize,
+        /// Which other array fixes the length.
+        reason: &'static str,
+    },
+
+    /// A node id in the surface description does not exist.
+    #[error(
+        "{what} refers to node {node}, but only {n_nodes} nodes exist (the length of the mass \
+         array); pass the masses of all nodes of the assembly"
+    )]
+    NodeOutOfRange {
+        /// Which entry (for example `"triangle 12"` or `"surface node 3"`).
+        what: String,
+        /// The node id.
+        node: usize,
+        /// Number of nodes known to the model.
+        n_nodes: usize,
+    },
+
+    /// The surface description is inconsistent.
+    #[error("inconsistent contact surface: {what}; {fix}")]
+    InconsistentSurface {
+        /// What is inconsistent, with the entry that shows it.
+        what: String,
+        /// How to fix it.
+        fix: &'static str,
+    },
+
+    /// A control area is not finite and positive.
+    #[error(
+        "control area {area} m^2 of surface node {node} (body {body}) is not finite and > 0; \
+         control areas are one third of the areas of the triangles around a node \
+         (fdem_mesh::Surface::from_triangles computes them)"
+    )]
+    InvalidControlArea {
+        /// Global node id.
+        node: usize,
+        /// Body of the node.
+        body: u32,
+        /// The area that was given.
+        area: f64,
+    },
+
+    /// A node mass is not finite and positive.
+    #[error(
+        "lumped mass {mass} kg of surface node {node} (body {body}) is not finite and > 0; \
+         pass the lumped masses of the assembled bodies (every surface node needs a mass)"
+    )]
+    InvalidMass {
+        /// Global node id.
+        node: usize,
+        /// Body of the node.
+        body: u32,
+        /// The mass that was given.
+        mass: f64,
+    },
+
+    /// The Verlet-skin margin is not finite and positive.
+    #[error(
+        "contact margin {margin} m is not finite and > 0; use for example \
+         ContactModel::suggested_margin (a tenth of the shortest surface edge)"
+    )]
+    InvalidMargin {
+        /// The margin that was given.
+        margin: f64,
+    },
+
+    /// A wall description is invalid.
+    #[error("wall {wall} is invalid: {reason}")]
+    InvalidWall {
+        /// Index of the wall.
+        wall: usize,
+        /// What is wrong and how to fix it.
+        reason: String,
+    },
+
+    /// The time step or the time passed to an evaluation is invalid.
+    #[error("{quantity} = {value} is invalid for a contact evaluation: {requirement}")]
+    InvalidStep {
+        /// `"dt"` or `"time"`.
+        quantity: &'static str,
+        /// The value that was given.
+        value: f64,
+        /// What the value must satisfy.
+        requirement: &'static str,
+    },
+
+    /// A node position or velocity is NaN or infinite.
+    #[error(
+        "{quantity} of surface node {node} (body {body}) is not finite ({value:?}); the \
+         simulation has diverged: reduce the time step (check the stable step of the elastic \
+         and contact bounds) or the loading rate"
+    )]
+    NonFinite {
+        /// `"position"` or `"velocity"`.
+        quantity: &'static str,
+        /// Global node id.
+        node: usize,
+        /// Body of the node.
+        body: u32,
+        /// The offending vector.
+        value: [f64; 3],
+    },
+
+    /// A node moves too far relative to nearby faces in one step: a contact could be lost.
+    #[error(
+        "tunnelling risk: surface node {node} (body {body}) moves {displacement:.3e} m \
+         relative to {relative_to} in one step of dt = {dt:.3e} s, more than half of the \
+         contact margin {margin:.3e} m; reduce the time step or enlarge the margin"
+    )]
+    Tunnelling {
+        /// Global node id.
+        node: usize,
+        /// Body of the node.
+        body: u32,
+        /// What the node moves relative to (a face of a body, a wall, or any other body).
+        relative_to: String,
+        /// Relative displacement in one step (m): relative speed times dt.
+        displacement: f64,
+        /// The contact margin (m).
+        margin: f64,
+        /// The time step (s).
+        dt: f64,
+    },
+
+    /// A node penetrated a face deeper than half the depth limit: the next step could lose
+    /// the contact.
+    #[error(
+        "surface node {node} (body {body}) penetrates {counterpart} by {depth:.3e} m, more \
+         than half of the depth limit {depth_limit:.3e} m (= the contact margin) beyond which \
+         a contact is no longer detected; enlarge the margin, raise the normal penalty, \
+         reduce the loading, or remove initial overlaps"
+    )]
+    PenetrationTooDeep {
+        /// Global node id.
+        node: usize,
+        /// Body of the node.
+        body: u32,
+        /// The body whose face is penetrated.
+        counterpart: Counterpart,
+        /// Penetration depth (m).
+        depth: f64,
+        /// Depth limit (m).
+        depth_limit: f64,
+    },
+
+    /// More surface nodes or triangles than the 32-bit indices of the contact arrays hold.
+    #[error(
+        "{what} count {count} exceeds the limit {limit} of the contact index arrays; split \
+         the problem or run with fewer particles"
+    )]
+    TooLarge {
+        /// `"surface node"` or `"triangle"`.
+        what: &'static str,
+        /// The count.
+        count: usize,
+        /// The limit.
+        limit: usize,
+    },
+}

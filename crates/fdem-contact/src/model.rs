@@ -1,0 +1,953 @@
+//! The contact model: detection, the law, reactions, walls, reports.
+
+use std::fmt;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::broad::{BroadPhase, CHUNK};
+use crate::law::{LawInput, evaluate_law};
+use crate::narrow::ProjectionKernel;
+use crate::params::spring_dashpot_time_step;
+use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
+use crate::wall::wall_distance;
+use crate::{ContactError, ContactParams, ContactSurface, NodeCoefficients, Wall, WallShape};
+
+/// Fraction of the shortest surface edge used by [`ContactModel::suggested_margin`].
+pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
+
+/// Fraction of the margin that a node may move relative to a nearby face (or wall) in one
+/// step before [`ContactModel::add_forces`] reports [`ContactError::Tunnelling`]; also the
+/// fraction of the depth limit beyond which it reports [`ContactError::PenetrationTooDeep`].
+pub const TUNNELLING_FRACTION: f64 = 0.5;
+
+/// What a surface node touches: a face of another body or a rigid wall.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Counterpart {
+    /// A face of this body.
+    Body(u32),
+    /// The wall of this index (in the order given to [`ContactModel::new`]).
+    Wall(u32),
+}
+
+impl Counterpart {
+    /// Packed code used in history keys: bodies below 2^32, walls at 2^32 + index.
+    #[inline]
+    fn code(self) -> u64 {
+        match self {
+            Counterpart::Body(b) => b as u64,
+            Counterpart::Wall(w) => (1u64 << 32) | w as u64,
+        }
+    }
+}
+
+impl fmt::Display for Counterpart {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Counterpart::Body(b) => write!(f, "a face of body {b}"),
+            Counterpart::Wall(w) => write!(f, "wall {w}"),
+        }
+    }
+}
+
+/// History key of a contact: surface-node index in the high bits, counterpart code below.
+#[inline]
+fn history_key(surface_index: usize, counterpart: Counterpart) -> u64 {
+    ((surface_index as u64) << 33) | counterpart.code()
+}
+
+/// One active node contact of the last evaluation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeContact {
+    #[serde(skip)]
+    key: u64,
+    /// Global id of the surface node.
+    pub node: usize,
+    /// Body of the node.
+    pub body: u32,
+    /// What the node touches.
+    pub counterpart: Counterpart,
+    /// The face (index into [`ContactSurface::triangles`]) for a body contact.
+    pub face: Option<usize>,
+    /// Barycentric weights of the contact point on the face's nodes (`[0; 3]` for walls).
+    pub weights: [f64; 3],
+    /// Position of the node (m).
+    pub position: [f64; 3],
+    /// Contact point on the face or wall (m): the foot of the node's perpendicular.
+    pub contact_point: [f64; 3],
+    /// Penetration depth (m).
+    pub depth: f64,
+    /// Normal force on the node (N); the face or wall receives the opposite.
+    pub normal_force: [f64; 3],
+    /// Tangential (friction) force on the node (N).
+    pub tangential_force: [f64; 3],
+    /// Elastic tangential displacement `d_s` kept as history (m).
+    pub tangential_displacement: [f64; 3],
+    /// Whether the contact slides (`|F_s| = mu F_n`).
+    pub sliding: bool,
+}
+
+impl NodeContact {
+    /// Total force on the node (N).
+    pub fn force(&self) -> [f64; 3] {
+        add(self.normal_force, self.tangential_force)
+    }
+}
+
+/// Sum of the node contacts between one body and one counterpart (last evaluation).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PairSum {
+    /// The body receiving the forces (the lower id of a body pair).
+    pub body: u32,
+    /// The other body (higher id) or a wall.
+    pub counterpart: Counterpart,
+    /// Sum of the normal force vectors on `body` from `counterpart` (N): the nodes of
+    /// `body` pressed into the counterpart's faces plus the reactions of the counterpart's
+    /// nodes pressed into `body`'s faces.
+    pub normal_force: [f64; 3],
+    /// Sum of the tangential force vectors on `body` from `counterpart` (N), counted the
+    /// same way.
+    pub tangential_force: [f64; 3],
+    /// Number of node contacts between the two, in both directions.
+    pub nodes: usize,
+}
+
+/// Summary of one evaluation, for the solver's energy balance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactReport {
+    /// Active node contacts (node-to-face and node-to-wall).
+    pub contacts: usize,
+    /// Of which against walls.
+    pub wall_contacts: usize,
+    /// Contacts that slide.
+    pub sliding: usize,
+    /// Stored contact energy `sum k_n d_n^2 / 2 + k_s |d_s|^2 / 2` (J).
+    pub stored_energy: f64,
+    /// Power dissipated by the normal dashpots at the evaluated velocities (W).
+    pub normal_damping_power: f64,
+    /// Power dissipated by the tangential dashpots at the evaluated velocities (W).
+    pub tangential_damping_power: f64,
+    /// Energy dissipated by frictional sliding in this evaluation (J), from the Coulomb
+    /// cut-back of the tangential displacements.
+    pub friction_dissipation: f64,
+    /// Power done by the walls on the particles (W): the wall velocity dotted with the
+    /// force each wall exerts, summed over walls; external work of the prescribed motion.
+    pub wall_power: f64,
+    /// Largest penetration depth (m).
+    pub max_depth: f64,
+    /// Whether the broad phase was rebuilt in this evaluation.
+    pub rebuilt: bool,
+    /// Candidate (surface node, triangle) pairs of the current broad phase.
+    pub candidate_pairs: usize,
+}
+
+/// The smallest contact stable time step over the surface nodes (MODEL.md section 11).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StableStep {
+    /// `dt <= 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` (s).
+    pub time_step: f64,
+    /// Global id of the node that sets it.
+    pub node: usize,
+    /// Its body.
+    pub body: u32,
+    /// The larger of its `k_n`, `k_s` (N/m).
+    pub stiffness: f64,
+    /// Its lumped mass (kg).
+    pub mass: f64,
+    /// The damping ratio that goes with that stiffness.
+    pub damping_ratio: f64,
+}
+
+impl fmt::Display for StableStep {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "contact spring-dashpot of surface node {} (body {}): dt <= {:.4e} s \
+             (k = {:.4e} N/m, m = {:.4e} kg, beta = {})",
+            self.node, self.body, self.time_step, self.stiffness, self.mass, self.damping_ratio
+        )
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Sums {
+    stored: f64,
+    normal_damping: f64,
+    tangential_damping: f64,
+    friction: f64,
+    max_depth: f64,
+}
+
+#[derive(Clone, Debug, Default)]
+struct ChunkScratch {
+    contacts: Vec<NodeContact>,
+    sums: Sums,
+    error: Option<ContactError>,
+}
+
+/// Result of the per-step scan of the surface nodes.
+#[derive(Clone, Copy, Debug)]
+struct Scan {
+    /// First non-finite position or velocity: (surface index, is_velocity).
+    bad: Option<(usize, bool)>,
+    max_drift2: f64,
+    max_speed2: f64,
+    fastest: usize,
+}
+
+impl Scan {
+    fn merge(self, o: Scan) -> Scan {
+        let bad = match (self.bad, o.bad) {
+            (Some(a), Some(b)) => Some(if a.0 <= b.0 { a } else { b }),
+            (a, b) => a.or(b),
+        };
+        let (max_speed2, fastest) = if o.max_speed2 > self.max_speed2
+            || (o.max_speed2 == self.max_speed2 && o.fastest < self.fastest)
+        {
+            (o.max_speed2, o.fastest)
+        } else {
+            (self.max_speed2, self.fastest)
+        };
+        Scan {
+            bad,
+            max_drift2: self.max_drift2.max(o.max_drift2),
+            max_speed2,
+            fastest,
+        }
+    }
+}
+
+/// Penalty node-to-face contact between deformable bodies and rigid walls.
+///
+/// Create it once with the surface, the masses and a margin, then call
+/// [`ContactModel::add_forces`] exactly once per time step: each call advances the
+/// tangential history by `dt`. The model is [`Clone`], so a state can be evaluated twice.
+#[derive(Clone, Debug)]
+pub struct ContactModel {
+    params: ContactParams,
+    surface: ContactSurface,
+    walls: Vec<Wall>,
+    n_nodes: usize,
+    margin: f64,
+    kernel: ProjectionKernel,
+    coefficients: Vec<NodeCoefficients>,
+    masses: Vec<f64>,
+    stable: Option<StableStep>,
+    broad: BroadPhase,
+    rebuild_requested: bool,
+    contacts: Vec<NodeContact>,
+    chunks: Vec<ChunkScratch>,
+    wall_shapes: Vec<WallShape>,
+    wall_forces: Vec<[f64; 3]>,
+    report: ContactReport,
+}
+
+impl ContactModel {
+    /// Sets up the model.
+    ///
+    /// - `masses`: lumped mass of every global node (kg); its length fixes the number of
+    ///   nodes that positions, velocities and forces must have. Surface-node masses must be
+    ///   finite and > 0; they set the dashpots `c = 2 beta sqrt(m k)` (eq 3).
+    /// - `margin` (m): the Verlet skin of the broad phase and the depth limit of the narrow
+    ///   phase; see [`ContactModel::suggested_margin`].
+    ///
+    /// Stiffnesses use the control areas of `surface`, fixed from the reference
+    /// configuration (`k_n = p_n A`, eq 2).
+    ///
+    /// # Errors
+    /// Invalid parameters, an inconsistent surface, a bad mass, margin or wall.
+    pub fn new(
+        params: ContactParams,
+        surface: ContactSurface,
+        walls: Vec<Wall>,
+        masses: &[f64],
+        margin: f64,
+    ) -> Result<ContactModel, ContactError> {
+        params.validate()?;
+        if !(margin.is_finite() && margin > 0.0) {
+            return Err(ContactError::InvalidMargin { margin });
+        }
+        let n_nodes = masses.len();
+        surface.validate(n_nodes)?;
+        let walls = walls
+            .iter()
+            .enumerate()
+            .map(|(i, w)| w.normalised(i))
+            .collect::<Result<Vec<_>, _>>()?;
+        if walls.len() > u32::MAX as usize {
+            return Err(ContactError::TooLarge {
+                what: "wall",
+                count: walls.len(),
+                limit: u32::MAX as usize,
+            });
+        }
+        let mut coefficients = Vec::with_capacity(surface.surface_nodes.len());
+        let mut node_masses = Vec::with_capacity(surface.surface_nodes.len());
+        let mut stable: Option<StableStep> = None;
+        let beta_n = params.damping;
+        let beta_s = params.tangential_damping_ratio();
+        for (k, &node) in surface.surface_nodes.iter().enumerate() {
+            let mass = masses[node];
+            let body = surface.node_body[k];
+            if !(mass.is_finite() && mass > 0.0) {
+                return Err(ContactError::InvalidMass { node, body, mass });
+            }
+            let c = params.coefficients(surface.control_areas[k], mass);
+            let (stiffness, damping_ratio) = if c.tangential_stiffness > c.normal_stiffness {
+                (c.tangential_stiffness, beta_s)
+            } else {
+                (c.normal_stiffness, beta_n)
+            };
+            let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
+            if stable.is_none_or(|s| dt < s.time_step) {
+                stable = Some(StableStep {
+                    time_step: dt,
+                    node,
+                    body,
+                    stiffness,
+                    mass,
+                    damping_ratio,
+                });
+            }
+            coefficients.push(c);
+            node_masses.push(mass);
+        }
+        let n_chunks = surface.surface_nodes.len().div_ceil(CHUNK);
+        Ok(ContactModel {
+            params,
+            n_nodes,
+            margin,
+            kernel: ProjectionKernel::default(),
+            coefficients,
+            masses: node_masses,
+            stable,
+            broad: BroadPhase::default(),
+            rebuild_requested: true,
+            contacts: Vec::new(),
+            chunks: vec![ChunkScratch::default(); n_chunks],
+            wall_shapes: Vec::with_capacity(walls.len()),
+            wall_forces: vec![[0.0; 3]; walls.len()],
+            report: ContactReport::default(),
+            walls,
+            surface,
+        })
+    }
+
+    /// A margin of [`MARGIN_EDGE_FRACTION`] (0.1) times the shortest surface edge at the
+    /// given positions; `None` without triangles. Large against typical penetrations
+    /// (about 1e-3 of a particle diameter for the paper's parameters), small against the
+    /// particles, so that the depth limit (= margin) never reaches through a particle.
+    pub fn suggested_margin(surface: &ContactSurface, positions: &[[f64; 3]]) -> Option<f64> {
+        surface
+            .shortest_edge(positions)
+            .map(|l| MARGIN_EDGE_FRACTION * l)
+    }
+
+    /// The contact parameters.
+    pub fn params(&self) -> &ContactParams {
+        &self.params
+    }
+
+    /// The contact surface.
+    pub fn surface(&self) -> &ContactSurface {
+        &self.surface
+    }
+
+    /// The walls, with unit normals and axes.
+    pub fn walls(&self) -> &[Wall] {
+        &self.walls
+    }
+
+    /// The Verlet-skin margin (m).
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
+    /// The depth limit (m): a node deeper than this behind a face is not in contact with it
+    /// (it equals the margin).
+    pub fn depth_limit(&self) -> f64 {
+        self.margin
+    }
+
+    /// Spring and dashpot coefficients of surface node `k` (index into
+    /// [`ContactSurface::surface_nodes`]).
+    pub fn coefficients(&self, k: usize) -> Option<&NodeCoefficients> {
+        self.coefficients.get(k)
+    }
+
+    /// The narrow-phase kernel in use.
+    pub fn projection_kernel(&self) -> ProjectionKernel {
+        self.kernel
+    }
+
+    /// Selects the narrow-phase kernel (for benchmarks; both give the same contacts up to
+    /// the tolerance band along face edges).
+    pub fn set_projection_kernel(&mut self, kernel: ProjectionKernel) {
+        self.kernel = kernel;
+    }
+
+    /// Smallest contact stable time step over the surface nodes (MODEL.md section 11), with
+    /// the node that sets it; `None` without surface nodes.
+    ///
+    /// Per node, `dt = 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` with the larger of `k_n`,
+    /// `k_s`, its damping ratio, and the node's own lumped mass. This is exact for a node
+    /// against a wall. Against a face of a deformable body the spring also moves the face
+    /// nodes: with comparable masses the reduced mass is about `m / 2`, which shortens the
+    /// bound by up to `1 / sqrt(2)`; the solver's safety factor must cover that.
+    pub fn stable_time_step(&self) -> Option<StableStep> {
+        self.stable
+    }
+
+    /// Forces the next evaluation to rebuild the broad phase (for example after nodes were
+    /// moved by something other than time stepping).
+    pub fn request_rebuild(&mut self) {
+        self.rebuild_requested = true;
+    }
+
+    /// Number of broad-phase builds so far.
+    pub fn rebuild_count(&self) -> usize {
+        self.broad.builds
+    }
+
+    /// Enlargement of the triangle boxes at the last build (m): `2 margin` plus the
+    /// tolerance band.
+    pub fn candidate_enlargement(&self) -> f64 {
+        self.broad.enlargement
+    }
+
+    /// Cell size of the spatial hash at the last build (m).
+    pub fn cell_size(&self) -> f64 {
+        self.broad.cell_size
+    }
+
+    /// Candidate pairs of the current broad phase as (global node id, triangle index), in
+    /// the order the narrow phase visits them. A pair is a candidate when the node's
+    /// position at the last build lies inside the triangle's bounding box at the last
+    /// build enlarged by [`ContactModel::candidate_enlargement`], and the triangle belongs
+    /// to another body.
+    pub fn candidate_pairs(&self) -> Vec<(usize, usize)> {
+        let mut out = Vec::with_capacity(self.broad.cand.len());
+        if !self.broad.built {
+            return out;
+        }
+        for (k, &node) in self.surface.surface_nodes.iter().enumerate() {
+            for c in self.broad.candidates(k) {
+                out.push((node, c.triangle as usize));
+            }
+        }
+        out
+    }
+
+    /// Force exerted by the particles on each wall in the last evaluation (N).
+    pub fn wall_forces(&self) -> &[[f64; 3]] {
+        &self.wall_forces
+    }
+
+    /// Active node contacts of the last evaluation, sorted by surface node, then
+    /// counterpart (bodies before walls).
+    pub fn node_contacts(&self) -> &[NodeContact] {
+        &self.contacts
+    }
+
+    /// The report of the last evaluation.
+    pub fn last_report(&self) -> &ContactReport {
+        &self.report
+    }
+
+    /// Stored contact energy of the last evaluation (J).
+    pub fn stored_energy(&self) -> f64 {
+        self.report.stored_energy
+    }
+
+    /// Per (body, counterpart) sums of the last evaluation, sorted by body then
+    /// counterpart: the ground truth that contact clustering validates against. Body pairs
+    /// appear once, under the lower body id.
+    pub fn pair_sums(&self) -> Vec<PairSum> {
+        let mut entries: Vec<(u32, Counterpart, f64, &NodeContact)> = self
+            .contacts
+            .iter()
+            .map(|c| match c.counterpart {
+                Counterpart::Body(b) if b < c.body => (b, Counterpart::Body(c.body), -1.0, c),
+                other => (c.body, other, 1.0, c),
+            })
+            .collect();
+        entries.sort_by_key(|e| (e.0, e.1));
+        let mut out: Vec<PairSum> = Vec::new();
+        for (body, counterpart, sign, c) in entries {
+            let fresh = out
+                .last()
+                .is_none_or(|p| p.body != body || p.counterpart != counterpart);
+            if fresh {
+                out.push(PairSum {
+                    body,
+                    counterpart,
+                    normal_force: [0.0; 3],
+                    tangential_force: [0.0; 3],
+                    nodes: 0,
+                });
+            }
+            if let Some(p) = out.last_mut() {
+                p.normal_force = add(p.normal_force, scale(c.normal_force, sign));
+                p.tangential_force = add(p.tangential_force, scale(c.tangential_force, sign));
+                p.nodes += 1;
+            }
+        }
+        out
+    }
+
+    fn check_lengths(
+        &self,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        forces: &[[f64; 3]],
+    ) -> Result<(), ContactError> {
+        for (array, found) in [
+            ("positions", positions.len()),
+            ("velocities", velocities.len()),
+            ("forces", forces.len()),
+        ] {
+            if found != self.n_nodes {
+                return Err(ContactError::LengthMismatch {
+                    array,
+                    expected: self.n_nodes,
+                    found,
+                    reason: "one entry per node, as many as the masses given to ContactModel::new",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Scans the surface nodes: finiteness, drift since the last build, largest speed.
+    fn scan(&self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) -> Scan {
+        let nodes = &self.surface.surface_nodes;
+        let reference = if self.broad.built {
+            Some(&self.broad.reference)
+        } else {
+            None
+        };
+        let empty = Scan {
+            bad: None,
+            max_drift2: 0.0,
+            max_speed2: 0.0,
+            fastest: 0,
+        };
+        (0..nodes.len().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|chunk| {
+                let mut s = empty;
+                let start = chunk * CHUNK;
+                for k in start..(start + CHUNK).min(nodes.len()) {
+                    let x = positions[nodes[k]];
+                    let v = velocities[nodes[k]];
+                    if s.bad.is_none() {
+                        if !is_finite(x) {
+                            s.bad = Some((k, false));
+                        } else if !is_finite(v) {
+                            s.bad = Some((k, true));
+                        }
+                    }
+                    if let Some(r) = reference {
+                        s.max_drift2 = s.max_drift2.max(norm2(sub(x, r[k])));
+                    }
+                    let v2 = norm2(v);
+                    if v2 > s.max_speed2 {
+                        s.max_speed2 = v2;
+                        s.fastest = k;
+                    }
+                }
+                s
+            })
+            .reduce(|| empty, Scan::merge)
+    }
+
+    /// Adds the contact forces for the state at time `time` to `forces`, advancing the
+    /// tangential histories by one step `dt`, and returns the report.
+    ///
+    /// `positions`, `velocities` and `forces` are indexed by global node id and must have
+    /// as many entries as the masses given to [`ContactModel::new`]. Wall positions are
+    /// their initial ones plus `velocity * time`. The tangential displacement grows by
+    /// `v_t dt` with the given velocities.
+    ///
+    /// Nothing is changed (neither `forces` nor the model's history) when an error is
+    /// returned.
+    ///
+    /// # Errors
+    /// [`ContactError::LengthMismatch`], [`ContactError::InvalidStep`],
+    /// [`ContactError::NonFinite`] for a diverged state, [`ContactError::Tunnelling`] when
+    /// a node moves more than half the margin relative to nearby faces or walls in one
+    /// step, [`ContactError::PenetrationTooDeep`] when a node is deeper than half the
+    /// depth limit.
+    pub fn add_forces(
+        &mut self,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        time: f64,
+        dt: f64,
+        forces: &mut [[f64; 3]],
+    ) -> Result<ContactReport, ContactError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(ContactError::InvalidStep {
+                quantity: "dt",
+                value: dt,
+                requirement: "the time step must be finite and > 0",
+            });
+        }
+        if !time.is_finite() {
+            return Err(ContactError::InvalidStep {
+                quantity: "time",
+                value: time,
+                requirement: "the time must be finite",
+            });
+        }
+        self.check_lengths(positions, velocities, forces)?;
+
+        // Pass 1: finiteness, Verlet-skin drift, fastest node.
+        let scan = self.scan(positions, velocities);
+        if let Some((k, is_velocity)) = scan.bad {
+            let node = self.surface.surface_nodes[k];
+            return Err(ContactError::NonFinite {
+                quantity: if is_velocity { "velocity" } else { "position" },
+                node,
+                body: self.surface.node_body[k],
+                value: if is_velocity {
+                    velocities[node]
+                } else {
+                    positions[node]
+                },
+            });
+        }
+        let margin = self.margin;
+        let half = TUNNELLING_FRACTION * margin;
+        // Tunnelling bound for pairs outside the candidate lists: they are more than
+        // `margin` apart, and no two nodes approach faster than twice the largest speed.
+        let v_max = scan.max_speed2.sqrt();
+        if 2.0 * v_max * dt > margin {
+            let k = scan.fastest;
+            return Err(ContactError::Tunnelling {
+                node: self.surface.surface_nodes[k],
+                body: self.surface.node_body[k],
+                relative_to: "other bodies (twice its speed bounds the relative speed)".to_string(),
+                displacement: 2.0 * v_max * dt,
+                margin,
+                dt,
+            });
+        }
+        let rebuild = self.rebuild_requested || !self.broad.built || scan.max_drift2 > half * half;
+        if rebuild {
+            self.broad.build(positions, &self.surface, margin);
+            self.rebuild_requested = false;
+        }
+        let check_faces = 2.0 * v_max * dt > half;
+        let wall_speed = self
+            .walls
+            .iter()
+            .map(|w| norm(w.velocity))
+            .fold(0.0, f64::max);
+        let check_walls = (v_max + wall_speed) * dt > half;
+        self.wall_shapes.clear();
+        self.wall_shapes
+            .extend(self.walls.iter().map(|w| w.shape_at(time)));
+
+        // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes.
+        let ctx = Ctx {
+            surface: &self.surface,
+            broad: &self.broad,
+            coefficients: &self.coefficients,
+            walls: &self.walls,
+            wall_shapes: &self.wall_shapes,
+            previous: &self.contacts,
+            kernel: self.kernel,
+            positions,
+            velocities,
+            dt,
+            margin,
+            check_faces,
+            check_walls,
+        };
+        self.chunks
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(chunk, scratch)| ctx.run_chunk(chunk, scratch));
+        if let Some(err) = self.chunks.iter_mut().find_map(|c| c.error.take()) {
+            return Err(err);
+        }
+
+        // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
+        let mut report = ContactReport {
+            rebuilt: rebuild,
+            candidate_pairs: self.broad.cand.len(),
+            ..ContactReport::default()
+        };
+        for f in &mut self.wall_forces {
+            *f = [0.0; 3];
+        }
+        self.contacts.clear();
+        for scratch in &self.chunks {
+            for c in &scratch.contacts {
+                let f = c.force();
+                let node = &mut forces[c.node];
+                *node = add(*node, f);
+                match (c.face, c.counterpart) {
+                    (Some(t), _) => {
+                        // Reaction on the face, spread by the barycentric weights of the
+                        // contact point: momentum is conserved to round-off.
+                        let tri = self.surface.triangles[t];
+                        for (i, &w) in tri.iter().zip(&c.weights) {
+                            forces[*i] = sub(forces[*i], scale(f, w));
+                        }
+                    }
+                    (None, Counterpart::Wall(w)) => {
+                        let w = w as usize;
+                        self.wall_forces[w] = sub(self.wall_forces[w], f);
+                        report.wall_contacts += 1;
+                    }
+                    (None, Counterpart::Body(_)) => {}
+                }
+                report.sliding += usize::from(c.sliding);
+                self.contacts.push(*c);
+            }
+            let s = &scratch.sums;
+            report.stored_energy += s.stored;
+            report.normal_damping_power += s.normal_damping;
+            report.tangential_damping_power += s.tangential_damping;
+            report.friction_dissipation += s.friction;
+            report.max_depth = report.max_depth.max(s.max_depth);
+        }
+        report.contacts = self.contacts.len();
+        // The wall exerts -(force on the wall) on the particles; its power is v_wall . that.
+        report.wall_power = self
+            .walls
+            .iter()
+            .zip(&self.wall_forces)
+            .map(|(w, f)| -(w.velocity[0] * f[0] + w.velocity[1] * f[1] + w.velocity[2] * f[2]))
+            .sum();
+        self.report = report;
+        Ok(report)
+    }
+
+    /// Lumped mass of surface node `k` (kg).
+    pub fn surface_node_mass(&self, k: usize) -> Option<f64> {
+        self.masses.get(k).copied()
+    }
+}
+
+/// Read-only context of one narrow-phase pass.
+struct Ctx<'a> {
+    surface: &'a ContactSurface,
+    broad: &'a BroadPhase,
+    coefficients: &'a [NodeCoefficients],
+    walls: &'a [Wall],
+    wall_shapes: &'a [WallShape],
+    previous: &'a [NodeContact],
+    kernel: ProjectionKernel,
+    positions: &'a [[f64; 3]],
+    velocities: &'a [[f64; 3]],
+    dt: f64,
+    margin: f64,
+    check_faces: bool,
+    check_walls: bool,
+}
+
+impl Ctx<'_> {
+    /// Tangential history of the contact `key` from the previous evaluation. Keys arrive in
+    /// increasing order within a chunk, and `previous` is sorted by key, so a cursor that
+    /// only moves forward finds them (a merge, not a search per contact).
+    #[inline]
+    fn history(&self, key: u64, cursor: &mut usize) -> [f64; 3] {
+        let previous = self.previous;
+        while *cursor < previous.len() && previous[*cursor].key < key {
+            *cursor += 1;
+        }
+        match previous.get(*cursor) {
+            Some(c) if c.key == key => c.tangential_displacement,
+            _ => [0.0; 3],
+        }
+    }
+
+    fn tunnelling(&self, k: usize, relative_to: Counterpart, displacement: f64) -> ContactError {
+        ContactError::Tunnelling {
+            node: self.surface.surface_nodes[k],
+            body: self.surface.node_body[k],
+            relative_to: relative_to.to_string(),
+            displacement,
+            margin: self.margin,
+            dt: self.dt,
+        }
+    }
+
+    fn run_chunk(&self, chunk: usize, scratch: &mut ChunkScratch) {
+        scratch.contacts.clear();
+        scratch.sums = Sums::default();
+        scratch.error = None;
+        let n = self.surface.surface_nodes.len();
+        let start = chunk * CHUNK;
+        let first_key = history_key(start, Counterpart::Body(0));
+        let mut cursor = self.previous.partition_point(|c| c.key < first_key);
+        for k in start..(start + CHUNK).min(n) {
+            if let Err(e) = self.node(k, scratch, &mut cursor) {
+                scratch.error = Some(e);
+                return;
+            }
+        }
+    }
+
+    /// All contacts of surface node `k`: the best face per other body, then the walls.
+    fn node(
+        &self,
+        k: usize,
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+    ) -> Result<(), ContactError> {
+        let s = self.surface;
+        let node = s.surface_nodes[k];
+        let body = s.node_body[k];
+        let x = self.positions[node];
+        let v = self.velocities[node];
+        let depth_limit = self.margin;
+        let half = TUNNELLING_FRACTION * self.margin;
+        let cands = self.broad.candidates(k);
+        let mut i = 0;
+        while i < cands.len() {
+            let other = cands[i].body;
+            let mut best: Option<(usize, [usize; 3], crate::FaceHit)> = None;
+            while i < cands.len() && cands[i].body == other {
+                let c = cands[i];
+                i += 1;
+                let tri = c.nodes.map(|j| j as usize);
+                if self.check_faces {
+                    let vc = scale(
+                        add(
+                            add(self.velocities[tri[0]], self.velocities[tri[1]]),
+                            self.velocities[tri[2]],
+                        ),
+                        1.0 / 3.0,
+                    );
+                    let d = norm(sub(v, vc)) * self.dt;
+                    if d > half {
+                        return Err(self.tunnelling(k, Counterpart::Body(other), d));
+                    }
+                }
+                let face = tri.map(|j| self.positions[j]);
+                if let Some(hit) = self.kernel.project(x, face, depth_limit) {
+                    if best.is_none_or(|(_, _, b)| hit.depth < b.depth) {
+                        best = Some((c.triangle as usize, tri, hit));
+                    }
+                }
+            }
+            if let Some((t, tri, hit)) = best {
+                let counterpart = Counterpart::Body(other);
+                if hit.depth > TUNNELLING_FRACTION * depth_limit {
+                    return Err(ContactError::PenetrationTooDeep {
+                        node,
+                        body,
+                        counterpart,
+                        depth: hit.depth,
+                        depth_limit,
+                    });
+                }
+                let w = hit.weights;
+                let mut v_face = [0.0; 3];
+                let mut point = [0.0; 3];
+                for (j, wj) in tri.iter().zip(w) {
+                    v_face = add(v_face, scale(self.velocities[*j], wj));
+                    point = add(point, scale(self.positions[*j], wj));
+                }
+                self.push(
+                    scratch,
+                    cursor,
+                    k,
+                    counterpart,
+                    Some(t),
+                    w,
+                    point,
+                    hit.depth,
+                    hit.normal,
+                    sub(v, v_face),
+                );
+            }
+        }
+        for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
+            let Some((distance, normal)) = wall_distance(shape, x) else {
+                continue;
+            };
+            let counterpart = Counterpart::Wall(w as u32);
+            let v_rel = sub(v, wall.velocity);
+            if self.check_walls {
+                let d = norm(v_rel) * self.dt;
+                if d > half && distance < self.margin + d {
+                    return Err(self.tunnelling(k, counterpart, d));
+                }
+            }
+            if distance < 0.0 {
+                let depth = -distance;
+                let point = add(x, scale(normal, depth));
+                self.push(
+                    scratch,
+                    cursor,
+                    k,
+                    counterpart,
+                    None,
+                    [0.0; 3],
+                    point,
+                    depth,
+                    normal,
+                    v_rel,
+                );
+            }
+        }
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn push(
+        &self,
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+        k: usize,
+        counterpart: Counterpart,
+        face: Option<usize>,
+        weights: [f64; 3],
+        contact_point: [f64; 3],
+        depth: f64,
+        normal: [f64; 3],
+        relative_velocity: [f64; 3],
+    ) {
+        let key = history_key(k, counterpart);
+        let mut history = self.history(key, cursor);
+        let out = evaluate_law(
+            &LawInput {
+                normal,
+                depth,
+                relative_velocity,
+                dt: self.dt,
+                coefficients: self.coefficients[k],
+            },
+            &mut history,
+        );
+        let sums = &mut scratch.sums;
+        sums.stored += out.stored_energy;
+        sums.normal_damping += out.normal_damping_power;
+        sums.tangential_damping += out.tangential_damping_power;
+        sums.friction += out.friction_dissipation;
+        sums.max_depth = sums.max_depth.max(depth);
+        let node = self.surface.surface_nodes[k];
+        scratch.contacts.push(NodeContact {
+            key,
+            node,
+            body: self.surface.node_body[k],
+            counterpart,
+            face,
+            weights,
+            position: self.positions[node],
+            contact_point,
+            depth,
+            normal_force: out.normal_force,
+            tangential_force: out.tangential_force,
+            tangential_displacement: history,
+            sliding: out.sliding,
+        });
+    }
+}

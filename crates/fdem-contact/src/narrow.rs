@@ -1,0 +1,167 @@
+//! Narrow phase: one node against one flat triangle.
+//!
+//! A node is in contact with a face when it lies behind the face's plane (the face normal
+//! points out of the face's body: triangles are counter-clockwise seen from outside) by at
+//! most a depth limit, and the foot of its perpendicular falls inside the triangle within
+//! [`BARYCENTRIC_TOLERANCE`]. Two interchangeable kernels compute this: a hand-written
+//! projection ([`project_hand`]) and one built on parry's
+//! `PointQueryWithLocation` for triangles ([`project_parry`]). They agree except within the
+//! tolerance band along the edges (tested); [`ProjectionKernel`] selects one, the default
+//! being the faster one measured by the `contact` criterion bench.
+
+use parry3d_f64::math::Vector;
+use parry3d_f64::query::PointQueryWithLocation;
+use parry3d_f64::shape::{Triangle, TrianglePointLocation};
+use serde::{Deserialize, Serialize};
+
+use crate::vec3::{cross, dot, norm2, scale, sub};
+
+/// Tolerance on the barycentric coordinates of the foot of the perpendicular: a foot with
+/// every coordinate `>= -1e-6` counts as inside. It keeps a node pressed exactly onto a
+/// shared edge from slipping between the two faces by round-off. Weights within the band
+/// are clamped to `>= 0` and renormalised before they spread the reaction.
+pub const BARYCENTRIC_TOLERANCE: f64 = 1e-6;
+
+/// A node found behind a face (the output of the narrow phase).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FaceHit {
+    /// Penetration depth `d_n >= 0` (m): the distance of the node behind the face plane.
+    pub depth: f64,
+    /// Unit outward normal of the face (the direction the node is pushed).
+    pub normal: [f64; 3],
+    /// Barycentric weights of the contact point (the foot of the perpendicular) on the
+    /// face's three nodes: non-negative, summing to 1.
+    pub weights: [f64; 3],
+}
+
+/// Which narrow-phase kernel [`crate::ContactModel`] uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProjectionKernel {
+    /// [`project_hand`]: plane distance first (early exit for nodes in front of the face or
+    /// too deep), then barycentrics from two triple products. The default: faster in the
+    /// `contact` bench.
+    #[default]
+    Hand,
+    /// [`project_parry`]: parry3d-f64's `Triangle::project_local_point_and_get_location`
+    /// (Voronoi-region closest point with location) after the same plane test.
+    Parry,
+}
+
+impl ProjectionKernel {
+    /// Runs the selected kernel.
+    #[inline]
+    pub fn project(self, node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> Option<FaceHit> {
+        match self {
+            ProjectionKernel::Hand => project_hand(node, face, depth_limit),
+            ProjectionKernel::Parry => project_parry(node, face, depth_limit),
+        }
+    }
+}
+
+/// Clamps weights within the tolerance band to `>= 0` and renormalises them.
+#[inline(always)]
+fn clamp_weights(w: [f64; 3]) -> [f64; 3] {
+    if w[0] >= 0.0 && w[1] >= 0.0 && w[2] >= 0.0 {
+        return w;
+    }
+    let c = [w[0].max(0.0), w[1].max(0.0), w[2].max(0.0)];
+    let s = c[0] + c[1] + c[2];
+    [c[0] / s, c[1] / s, c[2] / s]
+}
+
+/// Hand-written node-to-triangle test.
+///
+/// With `N = (b - a) x (c - a)` (outward, not normalised) the signed distance of the node
+/// `x` is `s = (x - a) . N / |N|`; the node is a candidate when `-depth_limit <= s < 0`.
+/// The barycentric coordinates of the foot of the perpendicular are
+/// `w_b = ((x - a) x (c - a)) . N / |N|^2`, `w_c = ((b - a) x (x - a)) . N / |N|^2`,
+/// `w_a = 1 - w_b - w_c` (the normal component of `x - a` drops out of both triple
+/// products). Returns `None` for a node in front of the face, deeper than `depth_limit`,
+/// with its foot outside the triangle, or for a degenerate face.
+#[inline]
+pub fn project_hand(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> Option<FaceHit> {
+    let [a, b, c] = face;
+    let e1 = sub(b, a);
+    let e2 = sub(c, a);
+    let n = cross(e1, e2);
+    let p = sub(node, a);
+    let s_scaled = dot(p, n);
+    // Also rejects NaN.
+    if s_scaled >= 0.0 || s_scaled.is_nan() {
+        return None;
+    }
+    let nn = norm2(n);
+    if nn <= 0.0 || nn.is_nan() {
+        return None;
+    }
+    let inv_len = 1.0 / nn.sqrt();
+    let depth = -s_scaled * inv_len;
+    if depth > depth_limit {
+        return None;
+    }
+    let inv_nn = 1.0 / nn;
+    let wb = dot(cross(p, e2), n) * inv_nn;
+    let wc = dot(cross(e1, p), n) * inv_nn;
+    let wa = 1.0 - wb - wc;
+    let tol = -BARYCENTRIC_TOLERANCE;
+    if wa < tol || wb < tol || wc < tol {
+        return None;
+    }
+    Some(FaceHit {
+        depth,
+        normal: scale(n, inv_len),
+        weights: clamp_weights([wa, wb, wc]),
+    })
+}
+
+#[inline(always)]
+fn to_glam(p: [f64; 3]) -> Vector {
+    Vector::new(p[0], p[1], p[2])
+}
+
+/// Node-to-triangle test through parry3d-f64.
+///
+/// Same plane test as [`project_hand`] (on parry's `Triangle::scaled_normal`), then
+/// `Triangle::project_local_point_and_get_location`: a foot on the face interior gives its
+/// barycentrics directly; a foot that parry snaps to an edge or vertex counts as inside
+/// when the snap moved it by at most [`BARYCENTRIC_TOLERANCE`] times `sqrt(|N|)` (the
+/// length scale of the face), with the snapped barycentrics as weights. `[f64; 3]` is
+/// converted to glam's `DVec3` at the boundary.
+#[inline]
+pub fn project_parry(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> Option<FaceHit> {
+    let tri = Triangle::new(to_glam(face[0]), to_glam(face[1]), to_glam(face[2]));
+    let x = to_glam(node);
+    let n = tri.scaled_normal();
+    let s_scaled = (x - tri.a).dot(n);
+    if s_scaled >= 0.0 || s_scaled.is_nan() {
+        return None;
+    }
+    let nn = n.length_squared();
+    if nn <= 0.0 || nn.is_nan() {
+        return None;
+    }
+    let len = nn.sqrt();
+    let depth = -s_scaled / len;
+    if depth > depth_limit {
+        return None;
+    }
+    let unit = n / len;
+    let (projection, location) = tri.project_local_point_and_get_location(x, false);
+    let weights = match location {
+        TrianglePointLocation::OnFace(_, w) => w,
+        _ => {
+            let foot = x - unit * (x - tri.a).dot(unit);
+            let snap = (projection.point - foot).length();
+            if snap > BARYCENTRIC_TOLERANCE * len.sqrt() {
+                return None;
+            }
+            location.barycentric_coordinates()?
+        }
+    };
+    Some(FaceHit {
+        depth,
+        normal: [unit.x, unit.y, unit.z],
+        weights: clamp_weights(weights),
+    })
+}

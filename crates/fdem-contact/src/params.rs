@@ -1,0 +1,117 @@
+//! Contact parameters (paper Table 3) and the per-node coefficients they give (eqs 2-3).
+
+use serde::{Deserialize, Serialize};
+
+use crate::ContactError;
+
+/// Parameters of the penalty contact law (MODEL.md section 2, paper eqs 1-3, Table 3).
+///
+/// The default is the source paper's Table 3.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactParams {
+    /// Normal penalty per unit area `p_n` (N/m^3); a node's normal stiffness is
+    /// `k_n = p_n A` with `A` its control area (eq 2). Finite and > 0.
+    pub normal_penalty: f64,
+    /// Ratio `p_s / p_n` of the tangential to the normal penalty (eq 2). Finite and >= 0.
+    pub penalty_ratio: f64,
+    /// Coulomb friction coefficient `mu` (eq 1, `|F_s| <= mu F_n`). Finite and >= 0.
+    pub friction: f64,
+    /// Normal damping ratio `beta_n` (eq 3, `c_n = 2 beta_n sqrt(m k_n)`). Finite and >= 0.
+    pub damping: f64,
+    /// Ratio `beta_s / beta_n` of the tangential to the normal damping ratio (eq 3).
+    /// Finite and >= 0.
+    pub damping_ratio: f64,
+}
+
+impl Default for ContactParams {
+    /// Paper Table 3: `p_n = 1.8e11 N/m^3`, `p_s/p_n = 1`, `mu = 0.3`, `beta = 0.2`,
+    /// `beta_s/beta_n = 1`.
+    fn default() -> Self {
+        ContactParams {
+            normal_penalty: 1.8e11,
+            penalty_ratio: 1.0,
+            friction: 0.3,
+            damping: 0.2,
+            damping_ratio: 1.0,
+        }
+    }
+}
+
+/// Spring and dashpot coefficients of one surface node (eqs 2-3).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct NodeCoefficients {
+    /// Normal stiffness `k_n = p_n A` (N/m).
+    pub normal_stiffness: f64,
+    /// Normal dashpot `c_n = 2 beta_n sqrt(m k_n)` (N s/m).
+    pub normal_damping: f64,
+    /// Tangential stiffness `k_s = (p_s/p_n) k_n` (N/m).
+    pub tangential_stiffness: f64,
+    /// Tangential dashpot `c_s = 2 beta_s sqrt(m k_s)`, `beta_s = beta_n (beta_s/beta_n)`
+    /// (N s/m).
+    pub tangential_damping: f64,
+    /// Friction coefficient `mu`.
+    pub friction: f64,
+}
+
+impl ContactParams {
+    /// Checks every field and names the first invalid one.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidParameter`] naming the field.
+    pub fn validate(&self) -> Result<(), ContactError> {
+        let check = |field: &'static str, value: f64, strict: bool| {
+            let ok = value.is_finite() && if strict { value > 0.0 } else { value >= 0.0 };
+            if ok {
+                Ok(())
+            } else {
+                Err(ContactError::InvalidParameter {
+                    field,
+                    value,
+                    requirement: if strict {
+                        "finite and > 0"
+                    } else {
+                        "finite and >= 0"
+                    },
+                })
+            }
+        };
+        check("normal_penalty", self.normal_penalty, true)?;
+        check("penalty_ratio", self.penalty_ratio, false)?;
+        check("friction", self.friction, false)?;
+        check("damping", self.damping, false)?;
+        check("damping_ratio", self.damping_ratio, false)?;
+        Ok(())
+    }
+
+    /// Tangential damping ratio `beta_s = beta_n * damping_ratio` (eq 3).
+    pub fn tangential_damping_ratio(&self) -> f64 {
+        self.damping * self.damping_ratio
+    }
+
+    /// Coefficients of a node of control area `area` (m^2) and lumped mass `mass` (kg):
+    /// `k_n = p_n A` (eq 2), `k_s = (p_s/p_n) k_n`, `c = 2 beta sqrt(m k)` (eq 3).
+    ///
+    /// No validation here: [`crate::ContactModel::new`] checks areas and masses.
+    pub fn coefficients(&self, area: f64, mass: f64) -> NodeCoefficients {
+        let k_n = self.normal_penalty * area;
+        let k_s = self.penalty_ratio * k_n;
+        NodeCoefficients {
+            normal_stiffness: k_n,
+            normal_damping: 2.0 * self.damping * (mass * k_n).sqrt(),
+            tangential_stiffness: k_s,
+            tangential_damping: 2.0 * self.tangential_damping_ratio() * (mass * k_s).sqrt(),
+            friction: self.friction,
+        }
+    }
+}
+
+/// Critical time step of one spring-dashpot (MODEL.md section 11):
+/// `dt <= 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` (s).
+///
+/// This is the central-difference stability limit of a damped oscillator of stiffness `k`
+/// (N/m), mass `m` (kg) and damping ratio `beta`; it equals `2 / omega` without damping.
+pub fn spring_dashpot_time_step(stiffness: f64, mass: f64, damping_ratio: f64) -> f64 {
+    let omega = (stiffness / mass).sqrt();
+    2.0 * ((1.0 + damping_ratio * damping_ratio).sqrt() - damping_ratio) / omega
+}

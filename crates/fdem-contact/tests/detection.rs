@@ -1,0 +1,319 @@
+//! Detection: the broad phase against brute force (with and without a Verlet rebuild), and
+//! the two narrow-phase kernels against each other.
+
+mod common;
+
+use std::collections::BTreeSet;
+
+use common::{add, linear_sphere, model_for, random_rotation, rng, scale};
+use fdem_contact::narrow::{project_hand, project_parry};
+use fdem_contact::{BARYCENTRIC_TOLERANCE, ContactModel, ContactParams};
+use fdem_mesh::{MeshAssembly, Placement};
+use proptest::prelude::*;
+use rand::RngExt;
+
+/// Pairs (node, triangle of another body) whose node lies in the triangle's box enlarged
+/// by `e`, by brute force over all pairs.
+fn brute_force(assembly: &MeshAssembly, x: &[[f64; 3]], e: f64) -> BTreeSet<(usize, usize)> {
+    let mut out = BTreeSet::new();
+    for (b, range) in assembly.bodies.iter().enumerate() {
+        for &node in &assembly.surface_nodes[range.surface_nodes.clone()] {
+            let p = x[node];
+            for (t, tri) in assembly.triangles.iter().enumerate() {
+                if assembly.triangle_body[t] as usize == b {
+                    continue;
+                }
+                let inside = (0..3).all(|d| {
+                    let lo = tri.iter().map(|&i| x[i][d]).fold(f64::MAX, f64::min) - e;
+                    let hi = tri.iter().map(|&i| x[i][d]).fold(f64::MIN, f64::max) + e;
+                    p[d] >= lo && p[d] <= hi
+                });
+                if inside {
+                    out.insert((node, t));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A cluster of `n` spheres of diameter `d`: each new one is placed next to a random
+/// earlier one with a gap (between the polyhedra) drawn from `gap`, and kept only if it
+/// keeps at least `gap.start` from every other sphere.
+fn scene(seed: u64, n: usize, level: u32, d: f64, gap: std::ops::Range<f64>) -> MeshAssembly {
+    let mut r = rng(seed);
+    let mesh = linear_sphere(level, d);
+    let mut placed = vec![Placement {
+        scale: 1.0,
+        rotation: random_rotation(&mut r),
+        translation: [0.0; 3],
+    }];
+    let mut tries = 0;
+    while placed.len() < n && tries < 200 {
+        tries += 1;
+        let anchor = placed[r.random_range(0..placed.len())];
+        let g = r.random_range(gap.clone());
+        let p = common::place_near(&mut r, &mesh, d, &anchor, -g);
+        if placed.iter().all(|o| {
+            common::norm(common::sub(o.translation, p.translation)) > 1.05 * d
+                || common::max_penetration(&common::pair_of(&mesh, o, &p)) <= -gap.start
+        }) {
+            placed.push(p);
+        }
+    }
+    let mut assembly = MeshAssembly::new();
+    for p in &placed {
+        assembly.push_instance(&mesh, p).unwrap();
+    }
+    assembly
+}
+
+fn evaluate(model: &mut ContactModel, x: &[[f64; 3]]) -> fdem_contact::ContactReport {
+    let n = x.len();
+    let mut f = vec![[0.0; 3]; n];
+    model
+        .add_forces(x, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn broad_phase_equals_brute_force(
+        seed in 0u64..1_000_000,
+        n in 2usize..7,
+        level in 0u32..2,
+        margin_fraction in 0.01f64..0.05,
+    ) {
+        let d = 0.01;
+        let margin = margin_fraction * d;
+        // Surfaces start 1 to 3 margins apart: every motion below stays contact-free or
+        // shallow, and many pairs are near enough to be candidates.
+        let assembly = scene(seed, n, level, d, margin..3.0 * margin);
+        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, Some(margin));
+        let x0 = assembly.nodes.clone();
+        let report = evaluate(&mut model, &x0);
+        prop_assert!(report.rebuilt);
+        let e = model.candidate_enlargement();
+        prop_assert!(e >= 2.0 * margin && e < 2.0 * margin * 1.001);
+        let got: Vec<(usize, usize)> = model.candidate_pairs();
+        let set: BTreeSet<_> = got.iter().copied().collect();
+        prop_assert_eq!(set.len(), got.len(), "no duplicates");
+        prop_assert!(assembly.n_bodies() < 2 || !got.is_empty(), "neighbours give candidates");
+        prop_assert_eq!(&set, &brute_force(&assembly, &x0, e));
+
+        // Small motion: every node moves less than margin / 2, no rebuild; the candidate
+        // lists still hold every pair that can be in contact now (node within the depth
+        // limit = margin of the current triangle box).
+        let mut r = rng(seed ^ 0x5eed);
+        let x1: Vec<[f64; 3]> = x0
+            .iter()
+            .map(|&p| {
+                let u = common::random_unit(&mut r);
+                add(p, scale(u, r.random_range(0.0..0.49) * margin))
+            })
+            .collect();
+        let report = evaluate(&mut model, &x1);
+        prop_assert!(!report.rebuilt);
+        prop_assert_eq!(model.candidate_pairs(), got.clone());
+        let needed = brute_force(&assembly, &x1, margin);
+        prop_assert!(needed.is_subset(&set), "a contact-capable pair is missing");
+
+        // One body moves rigidly by 0.6 margin: rebuild, and the lists equal brute force
+        // at the new positions.
+        let mover = seed as usize % assembly.n_bodies();
+        let shift = scale(common::random_unit(&mut r), 0.6 * margin);
+        let mut x2 = x1.clone();
+        for i in assembly.bodies[mover].nodes.clone() {
+            x2[i] = add(x2[i], shift);
+        }
+        let report = evaluate(&mut model, &x2);
+        prop_assert!(report.rebuilt);
+        let e = model.candidate_enlargement();
+        let set2: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
+        prop_assert_eq!(set2, brute_force(&assembly, &x2, e));
+    }
+}
+
+#[test]
+fn candidate_lists_are_deterministic_and_ordered() {
+    let assembly = scene(99, 6, 1, 0.01, 1e-4..3e-4);
+    let build = || {
+        let mut m = model_for(
+            &assembly,
+            ContactParams::default(),
+            vec![],
+            1e-4,
+            Some(2e-4),
+        );
+        evaluate(&mut m, &assembly.nodes);
+        m.candidate_pairs()
+    };
+    let a = build();
+    assert!(!a.is_empty());
+    assert_eq!(a, build());
+    // Sorted by node, then (owner body, triangle).
+    let body = |t: usize| assembly.triangle_body[t];
+    assert!(
+        a.windows(2)
+            .all(|w| (w[0].0, body(w[0].1), w[0].1) < (w[1].0, body(w[1].1), w[1].1))
+    );
+}
+
+#[test]
+fn rebuild_happens_only_beyond_half_the_margin() {
+    let assembly = scene(5, 3, 1, 0.01, 1e-3..2e-3);
+    let margin = 2e-4;
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    let mut x = assembly.nodes.clone();
+    evaluate(&mut model, &x);
+    assert_eq!(model.rebuild_count(), 1);
+    // Move one node by 0.49 margin, then 0.51 margin from its built position.
+    x[0][0] += 0.49 * margin;
+    assert!(!evaluate(&mut model, &x).rebuilt);
+    x[0][0] += 0.02 * margin;
+    assert!(evaluate(&mut model, &x).rebuilt);
+    assert_eq!(model.rebuild_count(), 2);
+    model.request_rebuild();
+    assert!(evaluate(&mut model, &x).rebuilt);
+}
+
+#[test]
+fn hand_and_parry_kernels_agree() {
+    let mut r = rng(1234);
+    let limit = 0.5;
+    let (mut hits, mut misses) = (0, 0);
+    for i in 0..20_000 {
+        let face: [[f64; 3]; 3] =
+            std::array::from_fn(|_| std::array::from_fn(|_| r.random_range(-1.0..1.0)));
+        // Half the points anywhere, half near the face (barycentrics in -0.2..1.2).
+        let x: [f64; 3] = if i % 2 == 0 {
+            std::array::from_fn(|_| r.random_range(-1.0..1.0))
+        } else {
+            let [a, b, c] = face;
+            let (u, v) = (r.random_range(-0.2..1.2), r.random_range(-0.2..1.2));
+            let n = common::cross(common::sub(b, a), common::sub(c, a));
+            let on = add(
+                a,
+                add(scale(common::sub(b, a), u), scale(common::sub(c, a), v)),
+            );
+            add(on, scale(n, r.random_range(-0.3..0.1) / common::norm(n)))
+        };
+        let h = project_hand(x, face, limit);
+        let p = project_parry(x, face, limit);
+        match (h, p) {
+            (Some(h), Some(p)) => {
+                hits += 1;
+                assert!((h.depth - p.depth).abs() < 1e-12);
+                for i in 0..3 {
+                    assert!((h.normal[i] - p.normal[i]).abs() < 1e-12);
+                    assert!((h.weights[i] - p.weights[i]).abs() < 1e-9, "{h:?} {p:?}");
+                }
+                let sum: f64 = h.weights.iter().sum();
+                assert!((sum - 1.0).abs() < 1e-12 && h.weights.iter().all(|&w| w >= 0.0));
+            }
+            (None, None) => misses += 1,
+            (h, p) => {
+                // Disagreement is allowed only inside the tolerance band along an edge:
+                // recompute the hand barycentrics and check one is within 1e-5 of zero.
+                let w = raw_barycentrics(x, face);
+                let near_edge = w.iter().any(|c| c.abs() < 1e-5);
+                assert!(near_edge, "{h:?} vs {p:?}, w {w:?}");
+            }
+        }
+    }
+    assert!(hits > 2000 && misses > 2000, "{hits} hits, {misses} misses");
+}
+
+fn raw_barycentrics(x: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
+    let e1 = common::sub(b, a);
+    let e2 = common::sub(c, a);
+    let n = common::cross(e1, e2);
+    let nn = common::dot(n, n);
+    let p = common::sub(x, a);
+    let wb = common::dot(common::cross(p, e2), n) / nn;
+    let wc = common::dot(common::cross(e1, p), n) / nn;
+    [1.0 - wb - wc, wb, wc]
+}
+
+#[test]
+fn narrow_phase_edge_cases() {
+    let face = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    for project in [project_hand, project_parry] {
+        // On a shared edge (w_a = 0 within round-off) the node is still in contact.
+        let hit = project([0.5, 0.5, -1e-3], face, 0.1).unwrap();
+        assert!((hit.weights[0]).abs() < 1e-12 && (hit.weights[1] - 0.5).abs() < 1e-12);
+        // Just beyond the tolerance band: outside.
+        assert!(project([0.5, 0.5 + 10.0 * BARYCENTRIC_TOLERANCE, -1e-3], face, 0.1).is_none());
+        // On the plane: no penetration, no contact; in front: none; beyond the limit: none.
+        assert!(project([0.2, 0.2, 0.0], face, 0.1).is_none());
+        assert!(project([0.2, 0.2, 1e-3], face, 0.1).is_none());
+        assert!(project([0.2, 0.2, -0.2], face, 0.1).is_none());
+        // Degenerate face: none, no NaN.
+        let flat = [[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        assert!(project([0.5, 0.0, -1e-3], flat, 0.1).is_none());
+        assert!(project([f64::NAN, 0.0, -1e-3], face, 0.1).is_none());
+        let hit = project([0.25, 0.25, -0.05], face, 0.1).unwrap();
+        assert!((hit.depth - 0.05).abs() < 1e-15);
+        assert_eq!(hit.normal, [0.0, 0.0, 1.0]);
+    }
+}
+
+#[test]
+fn spread_scenes_use_the_hash_and_still_match_brute_force() {
+    // Two touching clusters 2^21 cells apart: too spread for a dense grid (the hash table
+    // takes over) and exactly one wrap of the packed 21-bit cell coordinates apart, so
+    // cells of the two clusters share keys. The exact box test must remove the extra
+    // triangles that this brings into a cell.
+    let d = 0.01;
+    let margin = 2e-4;
+    let cluster = scene(17, 3, 1, d, margin..2.0 * margin);
+    let probe = model_for(
+        &cluster,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    let mut probe = probe;
+    evaluate(&mut probe, &cluster.nodes);
+    let cell = probe.cell_size();
+    let shift = [(1u64 << 21) as f64 * cell, 0.0, 0.0];
+    let mesh = linear_sphere(1, d);
+    let mut assembly = MeshAssembly::new();
+    // Same topology twice; the positions are the cluster's, then the cluster's shifted.
+    for _ in 0..2 {
+        for _ in 0..cluster.n_bodies() {
+            assembly
+                .push_instance(&mesh, &Placement::identity())
+                .unwrap();
+        }
+    }
+    let n0 = cluster.n_nodes();
+    let mut x = cluster.nodes.clone();
+    x.extend(cluster.nodes.iter().map(|&p| add(p, shift)));
+    assert_eq!(x.len(), assembly.n_nodes());
+    assert_eq!(x.len(), 2 * n0);
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    evaluate(&mut model, &x);
+    assert!((model.cell_size() - cell).abs() < 1e-9 * cell);
+    let got: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
+    let expect = brute_force(&assembly, &x, model.candidate_enlargement());
+    assert!(!expect.is_empty());
+    assert_eq!(got, expect);
+    // Each cluster sees only itself: twice the single cluster's candidates.
+    assert_eq!(got.len(), 2 * probe.candidate_pairs().len());
+}

@@ -1,0 +1,623 @@
+//! The assembled model: conservation, restitution against rigid walls, walls, guards,
+//! determinism, reports and set-up errors.
+
+mod common;
+
+use common::{add, cross, linear_sphere, model_for, norm, overlapping_pair, rng, scale, sub};
+use fdem_contact::{
+    ContactError, ContactModel, ContactParams, ContactSurface, Counterpart, Wall,
+    spring_dashpot_time_step,
+};
+use fdem_mesh::{MeshAssembly, Placement};
+use rand::RngExt;
+
+/// Random node/face configurations: two randomly rotated level-1 spheres overlapping along
+/// a random direction, random velocities, two steps so that friction histories exist.
+#[test]
+fn forces_sum_to_zero_and_torques_to_the_tangential_couple() {
+    for seed in 0..16 {
+        let mut r = rng(seed);
+        let d = 0.01;
+        // About a fifth of the suggested margin (0.1 x the shortest edge, 2.7e-4 m).
+        let assembly = overlapping_pair(&mut r, 1, d, 5e-5);
+        let n = assembly.n_nodes();
+        let velocities: Vec<[f64; 3]> = (0..n)
+            .map(|_| std::array::from_fn(|_| r.random_range(-1.0..1.0)))
+            .collect();
+        for friction in [0.0, 0.3] {
+            let params = ContactParams {
+                friction,
+                ..ContactParams::default()
+            };
+            let mut model = model_for(&assembly, params, vec![], 1e-4, None);
+            let mut forces = vec![[0.0; 3]; n];
+            for _ in 0..2 {
+                forces = vec![[0.0; 3]; n];
+                model
+                    .add_forces(&assembly.nodes, &velocities, 0.0, 1e-7, &mut forces)
+                    .unwrap();
+            }
+            assert!(!model.node_contacts().is_empty(), "seed {seed}: no contact");
+            let total: [f64; 3] = forces.iter().fold([0.0; 3], |s, f| add(s, *f));
+            let scale_f: f64 = forces.iter().map(|f| norm(*f)).sum();
+            assert!(
+                norm(total) <= 1e-12 * scale_f,
+                "seed {seed}: {total:?} vs {scale_f}"
+            );
+            // Torque about the origin: the normal part cancels (it acts along node ->
+            // contact point); what remains is sum (x_node - x_contact) x F_s.
+            let torque: [f64; 3] = assembly
+                .nodes
+                .iter()
+                .zip(&forces)
+                .fold([0.0; 3], |s, (x, f)| add(s, cross(*x, *f)));
+            let couple: [f64; 3] = model.node_contacts().iter().fold([0.0; 3], |s, c| {
+                add(
+                    s,
+                    cross(sub(c.position, c.contact_point), c.tangential_force),
+                )
+            });
+            let torque_scale: f64 = assembly
+                .nodes
+                .iter()
+                .zip(&forces)
+                .map(|(x, f)| norm(*x) * norm(*f))
+                .sum();
+            assert!(
+                norm(sub(torque, couple)) <= 1e-12 * torque_scale,
+                "seed {seed} mu {friction}: {torque:?} vs {couple:?}"
+            );
+            if friction == 0.0 {
+                assert_eq!(couple, [0.0; 3]);
+            } else {
+                assert!(
+                    model
+                        .node_contacts()
+                        .iter()
+                        .any(|c| norm(c.tangential_force) > 0.0)
+                );
+            }
+        }
+    }
+}
+
+/// Analytic coefficient of restitution of the linear spring-dashpot (damping ratio beta)
+/// when the force may pull: e = exp(-beta pi / sqrt(1 - beta^2)).
+fn e_unclamped(beta: f64) -> f64 {
+    (-beta * std::f64::consts::PI / (1.0 - beta * beta).sqrt()).exp()
+}
+
+/// The same oscillator when the force is clamped at zero (Schwager & Poeschel 2007): the
+/// contact ends at omega_d t_c = pi - atan(2 beta sqrt(1 - beta^2) / (1 - 2 beta^2)),
+/// where k x + c x' = 0, and e = |x'(t_c)| / v0. Valid for beta < 1/sqrt(2).
+fn e_clamped(beta: f64) -> f64 {
+    let s = (1.0 - beta * beta).sqrt();
+    let phase = std::f64::consts::PI - (2.0 * beta * s / (1.0 - 2.0 * beta * beta)).atan();
+    // x'(t)/v0 = exp(-beta omega t) (cos(omega_d t) - beta/s sin(omega_d t)), omega t = phase/s.
+    ((-beta * phase / s).exp() * (phase.cos() - beta / s * phase.sin())).abs()
+}
+
+/// A single node of mass m and control area A dropped at v0 on the plane z = 0, integrated
+/// with velocity Verlet at dt = T/4000; returns the coefficient of restitution.
+fn bounce(beta: f64) -> f64 {
+    let (m, area, v0) = (2e-3, 1e-5, 0.05);
+    let params = ContactParams {
+        damping: beta,
+        friction: 0.0,
+        ..ContactParams::default()
+    };
+    let surface = ContactSurface {
+        triangles: vec![],
+        triangle_body: vec![],
+        surface_nodes: vec![0],
+        node_body: vec![0],
+        control_areas: vec![area],
+    };
+    let wall = Wall::plane([0.0; 3], [0.0, 0.0, 1.0]);
+    let mut model = ContactModel::new(params, surface, vec![wall], &[m], 1e-4).unwrap();
+    let k = params.normal_penalty * area;
+    let period = 2.0 * std::f64::consts::PI / (k / m).sqrt();
+    let dt = period / 4000.0;
+    let mut x = [0.0, 0.0, 0.5 * v0 * dt];
+    let mut v = [0.0, 0.0, -v0];
+    let mut a = [0.0; 3];
+    for _ in 0..20_000 {
+        let v_half = add(v, scale(a, 0.5 * dt));
+        x = add(x, scale(v_half, dt));
+        let mut f = [[0.0; 3]];
+        model.add_forces(&[x], &[v_half], 0.0, dt, &mut f).unwrap();
+        a = scale(f[0], 1.0 / m);
+        v = add(v_half, scale(a, 0.5 * dt));
+        if x[2] > 0.0 && v[2] > 0.0 {
+            return v[2] / v0;
+        }
+    }
+    panic!("the node did not bounce off");
+}
+
+#[test]
+fn restitution_matches_the_spring_dashpot() {
+    let betas = [0.005, 0.05, 0.1, 0.2, 0.3, 0.5];
+    let mut last = 1.0;
+    for beta in betas {
+        let e = bounce(beta);
+        // Clamped law (ours): the known clamped solution within 1 %.
+        let ec = e_clamped(beta);
+        assert!(
+            (e - ec).abs() < 0.01 * ec,
+            "beta {beta}: e {e} vs clamped {ec}"
+        );
+        // The clamp releases the contact before the spring pulls back, so less energy is
+        // damped than with the unclamped law: e >= e_unclamped.
+        assert!(e >= e_unclamped(beta), "beta {beta}");
+        assert!(e < last, "e decreases with beta");
+        last = e;
+    }
+    // For small beta the two laws coincide: within 1 % of exp(-beta pi / sqrt(1-beta^2)).
+    let beta = 0.005;
+    assert!((bounce(beta) - e_unclamped(beta)).abs() < 0.01 * e_unclamped(beta));
+    // Without damping, energy is conserved: e = 1 within the O(dt^2) Verlet error.
+    assert!((bounce(0.0) - 1.0).abs() < 1e-3);
+}
+
+#[test]
+fn cylinder_and_moving_plane_walls() {
+    let surface = ContactSurface {
+        triangles: vec![],
+        triangle_body: vec![],
+        surface_nodes: vec![0, 1],
+        node_body: vec![0, 1],
+        control_areas: vec![1e-5, 1e-5],
+    };
+    let params = ContactParams {
+        damping: 0.0,
+        ..ContactParams::default()
+    };
+    let k = params.normal_penalty * 1e-5;
+    // Cylinder of radius 0.1 about the z axis, plane z = 0.05 + 0.01 t facing down.
+    let walls = vec![
+        Wall::cylinder([0.0; 3], [0.0, 0.0, 2.0], 0.1),
+        Wall::plane([0.0, 0.0, 0.05], [0.0, 0.0, -1.0]).moving([0.0, 0.0, 0.01]),
+    ];
+    let mut model = ContactModel::new(params, surface, walls, &[1e-3, 1e-3], 1e-4).unwrap();
+    let (d0, d1): (f64, f64) = (2e-6, 3e-6);
+    let t = 0.5; // the plane is at z = 0.055
+    // Node 0 at radius 0.1 + d0 (outside the cylinder), node 1 d1 above the plane.
+    let grow: f64 = (0.1 + d0) / 0.1;
+    let x: [[f64; 3]; 2] = [[0.06 * grow, 0.08 * grow, 0.0], [0.0, 0.0, 0.055 + d1]];
+    let r0: f64 = (x[0][0] * x[0][0] + x[0][1] * x[0][1]).sqrt();
+    let depth0 = r0 - 0.1;
+    let v = [[0.0; 3], [0.0, 0.0, 0.01]];
+    let mut f = [[0.0; 3]; 2];
+    let report = model.add_forces(&x, &v, t, 1e-7, &mut f).unwrap();
+    assert_eq!((report.contacts, report.wall_contacts), (2, 2));
+    // Cylinder: inward radial force k depth.
+    let inward = [-x[0][0] / r0, -x[0][1] / r0, 0.0];
+    assert!(norm(sub(f[0], scale(inward, k * depth0))) < 1e-9 * k * depth0);
+    // Plane moving with the node: no relative velocity, force -k d1 along z.
+    assert!((f[1][2] + k * d1).abs() < 1e-9 * k * d1);
+    // Walls receive the opposite forces; the moving plane does work v_w . F_wall->node.
+    let wf = model.wall_forces();
+    assert!(norm(add(wf[0], f[0])) < 1e-15 * norm(f[0]));
+    assert!(norm(add(wf[1], f[1])) < 1e-15 * norm(f[1]));
+    assert!((report.wall_power - 0.01 * f[1][2]).abs() < 1e-12 * norm(f[1]) * 0.01);
+    let sums = model.pair_sums();
+    assert_eq!(sums.len(), 2);
+    assert_eq!(
+        (sums[0].body, sums[0].counterpart),
+        (0, Counterpart::Wall(0))
+    );
+    assert_eq!(
+        (sums[1].body, sums[1].counterpart),
+        (1, Counterpart::Wall(1))
+    );
+}
+
+#[test]
+fn pair_sums_equal_the_force_between_two_bodies() {
+    let mut r = rng(7);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 5e-5);
+    let n = assembly.n_nodes();
+    let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+    let v: Vec<[f64; 3]> = (0..n)
+        .map(|_| std::array::from_fn(|_| r.random_range(-0.1..0.1)))
+        .collect();
+    let mut f = vec![[0.0; 3]; n];
+    model
+        .add_forces(&assembly.nodes, &v, 0.0, 1e-7, &mut f)
+        .unwrap();
+    let sums = model.pair_sums();
+    assert_eq!(sums.len(), 1);
+    let s = sums[0];
+    assert_eq!((s.body, s.counterpart), (0, Counterpart::Body(1)));
+    assert_eq!(s.nodes, model.node_contacts().len());
+    let on_body0 = assembly.bodies[0]
+        .nodes
+        .clone()
+        .fold([0.0; 3], |acc, i| add(acc, f[i]));
+    let total = add(s.normal_force, s.tangential_force);
+    assert!(norm(sub(total, on_body0)) < 1e-12 * norm(on_body0));
+}
+
+#[test]
+fn detection_is_symmetric() {
+    // Two identical spheres stacked along z: the top vertex of the lower one is inside the
+    // upper one and the bottom vertex of the upper one inside the lower one; both nodes
+    // are found, against the other body's faces.
+    let d = 0.01;
+    let mesh = linear_sphere(1, d);
+    let mut assembly = MeshAssembly::new();
+    assembly
+        .push_instance(&mesh, &Placement::at([0.0; 3]))
+        .unwrap();
+    assembly
+        .push_instance(&mesh, &Placement::at([0.0, 0.0, d - 2e-5]))
+        .unwrap();
+    let n = assembly.n_nodes();
+    let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+    let mut f = vec![[0.0; 3]; n];
+    model
+        .add_forces(&assembly.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap();
+    let c = model.node_contacts();
+    assert_eq!(c.len(), 2);
+    assert_eq!((c[0].body, c[0].counterpart), (0, Counterpart::Body(1)));
+    assert_eq!((c[1].body, c[1].counterpart), (1, Counterpart::Body(0)));
+    // Each tip is 2e-5 m past the other tip, and is pushed back along z.
+    assert!(c[0].normal_force[2] < 0.0 && c[1].normal_force[2] > 0.0);
+}
+
+#[test]
+fn histories_persist_per_contact_across_chunks() {
+    // 27 spheres (1134 surface nodes: three parallel chunks) on an overlapping lattice,
+    // each translating rigidly at its own velocity, positions held fixed for three
+    // evaluations, friction high enough to stick: every contact's tangential displacement
+    // must be exactly 3 v_t,rel dt, so each found its own history every time.
+    let d = 0.01;
+    let mesh = linear_sphere(1, d);
+    let half = mesh.nodes.iter().map(|x| x[0]).fold(f64::MIN, f64::max);
+    let mut assembly = MeshAssembly::new();
+    for i in 0..27 {
+        let t = [i % 3, (i / 3) % 3, i / 9].map(|c| c as f64 * (2.0 * half - 3e-5));
+        assembly.push_instance(&mesh, &Placement::at(t)).unwrap();
+    }
+    let n = assembly.n_nodes();
+    let mut r = rng(8);
+    let body_v: Vec<[f64; 3]> = (0..27)
+        .map(|_| std::array::from_fn(|_| r.random_range(-1e-3..1e-3)))
+        .collect();
+    let mut v = vec![[0.0; 3]; n];
+    for (b, range) in assembly.bodies.iter().enumerate() {
+        for i in range.nodes.clone() {
+            v[i] = body_v[b];
+        }
+    }
+    let params = ContactParams {
+        friction: 100.0,
+        damping: 0.0,
+        ..ContactParams::default()
+    };
+    let mut model = model_for(&assembly, params, vec![], 1e-4, Some(2e-4));
+    let dt = 1e-7;
+    for _ in 0..3 {
+        let mut f = vec![[0.0; 3]; n];
+        model
+            .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+            .unwrap();
+    }
+    let contacts = model.node_contacts();
+    assert_eq!(contacts.len(), 2 * 54, "two tips per touching pair");
+    for c in contacts {
+        let Counterpart::Body(other) = c.counterpart else {
+            panic!("no walls here")
+        };
+        let rel = sub(body_v[c.body as usize], body_v[other as usize]);
+        let nrm = scale(c.normal_force, 1.0 / norm(c.normal_force));
+        let vt = sub(rel, scale(nrm, common::dot(rel, nrm)));
+        let expect = scale(vt, 3.0 * dt);
+        assert!(
+            norm(sub(c.tangential_displacement, expect)) < 1e-12 * norm(expect),
+            "node {}: {:?} vs {expect:?}",
+            c.node,
+            c.tangential_displacement
+        );
+        assert!(!c.sliding);
+    }
+}
+
+#[test]
+fn stored_energy_is_half_k_d_squared() {
+    let mut r = rng(3);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 5e-5);
+    let n = assembly.n_nodes();
+    let params = ContactParams::default();
+    let mut model = model_for(&assembly, params, vec![], 1e-4, None);
+    let mut f = vec![[0.0; 3]; n];
+    let report = model
+        .add_forces(&assembly.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap();
+    let surface = model.surface();
+    let expect: f64 = model
+        .node_contacts()
+        .iter()
+        .map(|c| {
+            let k = surface
+                .surface_nodes
+                .iter()
+                .position(|&g| g == c.node)
+                .unwrap();
+            0.5 * params.normal_penalty * surface.control_areas[k] * c.depth * c.depth
+        })
+        .sum();
+    assert!(expect > 0.0);
+    assert!((report.stored_energy - expect).abs() < 1e-12 * expect);
+    assert_eq!(report.normal_damping_power, 0.0);
+    assert_eq!(report.friction_dissipation, 0.0);
+}
+
+#[test]
+fn stable_time_step_is_the_smallest_spring_dashpot_bound() {
+    let surface = ContactSurface {
+        triangles: vec![],
+        triangle_body: vec![],
+        surface_nodes: vec![0, 1, 2],
+        node_body: vec![0, 0, 1],
+        control_areas: vec![1e-5, 4e-5, 1e-5],
+    };
+    let params = ContactParams {
+        penalty_ratio: 2.0,
+        damping_ratio: 0.5,
+        ..ContactParams::default()
+    };
+    let masses = [1e-3, 1e-3, 3e-3];
+    let model = ContactModel::new(params, surface, vec![], &masses, 1e-4).unwrap();
+    let s = model.stable_time_step().unwrap();
+    // Node 1: k_s = 2 p_n A = 1.44e7 N/m is the larger stiffness, beta_s = 0.1.
+    assert_eq!((s.node, s.body), (1, 0));
+    let k = 2.0 * 1.8e11 * 4e-5;
+    let expect = 2.0 * ((1.0f64 + 0.01).sqrt() - 0.1) / (k / 1e-3f64).sqrt();
+    assert!((s.time_step - expect).abs() < 1e-14 * expect);
+    assert_eq!(s.time_step, spring_dashpot_time_step(k, 1e-3, 0.1));
+    assert!(s.to_string().contains("surface node 1 (body 0)"), "{s}");
+}
+
+#[test]
+fn tunnelling_guard_fires_on_a_too_large_step() {
+    let mut r = rng(11);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 0.0);
+    let n = assembly.n_nodes();
+    let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+    let margin = model.margin();
+    // The bodies fly at each other with 0.3 margin per step each: 0.6 margin relative.
+    let centre1: [f64; 3] = assembly.nodes[assembly.bodies[1].nodes.start..]
+        .iter()
+        .fold([0.0; 3], |s, x| add(s, *x));
+    let towards = scale(centre1, -1.0 / norm(centre1));
+    let dt = 1e-6;
+    let mut v = vec![[0.0; 3]; n];
+    for i in assembly.bodies[1].nodes.clone() {
+        v[i] = scale(towards, 0.3 * margin / dt);
+    }
+    for i in assembly.bodies[0].nodes.clone() {
+        v[i] = scale(towards, -0.3 * margin / dt);
+    }
+    let mut f = vec![[0.0; 3]; n];
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, ContactError::Tunnelling { .. }), "{msg}");
+    assert!(
+        msg.contains("reduce the time step or enlarge the margin"),
+        "{msg}"
+    );
+    // The first node in order (body 0) moving towards a face of the other body.
+    assert!(
+        msg.contains("(body 0)") && msg.contains("a face of body 1"),
+        "{msg}"
+    );
+    assert!(f.iter().all(|x| *x == [0.0; 3]), "nothing added on error");
+    // A tenth of that speed is fine.
+    for vi in &mut v {
+        *vi = scale(*vi, 0.1);
+    }
+    model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap();
+    // Far faster than any margin: the global bound fires.
+    for vi in &mut v {
+        *vi = scale(*vi, 100.0);
+    }
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    assert!(matches!(err, ContactError::Tunnelling { .. }), "{err}");
+}
+
+#[test]
+fn tunnelling_guard_watches_walls() {
+    let surface = ContactSurface {
+        triangles: vec![],
+        triangle_body: vec![],
+        surface_nodes: vec![0],
+        node_body: vec![0],
+        control_areas: vec![1e-5],
+    };
+    let wall = Wall::plane([0.0; 3], [0.0, 0.0, 1.0]).moving([0.0, 0.0, 30.0]);
+    let mut model =
+        ContactModel::new(ContactParams::default(), surface, vec![wall], &[1e-3], 1e-4).unwrap();
+    let mut f = [[0.0; 3]];
+    // The wall moves 30 m/s * 2e-6 s = 0.6 margin per step and is 0.5 margin away.
+    let err = model
+        .add_forces(&[[0.0, 0.0, 5e-5]], &[[0.0; 3]], 0.0, 2e-6, &mut f)
+        .unwrap_err();
+    assert!(err.to_string().contains("wall 0"), "{err}");
+    // Far from the wall, the same speed is harmless.
+    model
+        .add_forces(&[[0.0, 0.0, 1.0]], &[[0.0; 3]], 0.0, 2e-6, &mut f)
+        .unwrap();
+}
+
+#[test]
+fn too_deep_penetration_is_an_error_not_a_lost_contact() {
+    // A node 0.7 margin deep: detected (the depth limit is the margin), but the next step
+    // could carry it beyond the limit, so the model stops.
+    let margin = 1e-4;
+    let mut r = rng(5);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 0.7 * margin);
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    let n = assembly.n_nodes();
+    let x = assembly.nodes.clone();
+    let mut f = vec![[0.0; 3]; n];
+    let err = model
+        .add_forces(&x, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap_err();
+    assert!(
+        matches!(err, ContactError::PenetrationTooDeep { .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("enlarge the margin"), "{err}");
+}
+
+#[test]
+fn evaluations_are_bit_for_bit_repeatable_for_any_thread_count() {
+    // Eight spheres in a 2x2x2 lattice, slightly overlapping, random velocities.
+    let mesh = linear_sphere(1, 0.01);
+    let mut assembly = MeshAssembly::new();
+    let mut r = rng(21);
+    let spacing = 0.00995;
+    for i in 0..8 {
+        let t = [(i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64].map(|c| c * spacing);
+        assembly.push_instance(&mesh, &Placement::at(t)).unwrap();
+    }
+    let n = assembly.n_nodes();
+    let v: Vec<[f64; 3]> = (0..n)
+        .map(|_| std::array::from_fn(|_| r.random_range(-0.5..0.5)))
+        .collect();
+    let base = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(2e-4),
+    );
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut model = base.clone();
+            let mut out = Vec::new();
+            for step in 0..3 {
+                let mut f = vec![[0.0; 3]; n];
+                let report = model
+                    .add_forces(&assembly.nodes, &v, step as f64 * 1e-7, 1e-7, &mut f)
+                    .unwrap();
+                out.push((f, report, model.node_contacts().to_vec()));
+            }
+            out
+        })
+    };
+    let a = run(1);
+    assert!(a[2].1.contacts > 20, "contacts {}", a[2].1.contacts);
+    for threads in [1, 2, 3] {
+        let b = run(threads);
+        for (sa, sb) in a.iter().zip(&b) {
+            let fa: Vec<u64> = sa.0.iter().flatten().map(|x| x.to_bits()).collect();
+            let fb: Vec<u64> = sb.0.iter().flatten().map(|x| x.to_bits()).collect();
+            assert_eq!(fa, fb, "{threads} threads");
+            assert_eq!(sa.1, sb.1);
+            assert_eq!(sa.2, sb.2);
+        }
+    }
+}
+
+#[test]
+fn set_up_and_input_errors_say_what_and_where() {
+    let surface = ContactSurface {
+        triangles: vec![[0, 1, 2]],
+        triangle_body: vec![0],
+        surface_nodes: vec![0, 1, 2, 3],
+        node_body: vec![0, 0, 0, 1],
+        control_areas: vec![1e-4, 1e-4, 1e-4, 1e-5],
+    };
+    let p = ContactParams::default();
+    let masses = [1e-3; 4];
+    let new = |s: ContactSurface, m: &[f64], margin: f64, walls: Vec<Wall>| {
+        ContactModel::new(p, s, walls, m, margin)
+            .map(|_| ())
+            .unwrap_err()
+            .to_string()
+    };
+    let mut s = surface.clone();
+    s.control_areas[3] = 0.0;
+    assert!(new(s, &masses, 1e-4, vec![]).contains("surface node 3 (body 1)"));
+    let msg = new(surface.clone(), &[1e-3, 1e-3, -1.0, 1e-3], 1e-4, vec![]);
+    assert!(
+        msg.contains("node 2 (body 0)") && msg.contains("mass"),
+        "{msg}"
+    );
+    let msg = new(surface.clone(), &masses[..3], 1e-4, vec![]);
+    assert!(msg.contains("refers to node 3"), "{msg}");
+    assert!(new(surface.clone(), &masses, 0.0, vec![]).contains("margin"));
+    let mut s = surface.clone();
+    s.node_body[1] = 1;
+    let msg = new(s, &masses, 1e-4, vec![]);
+    assert!(
+        msg.contains("triangle 0") && msg.contains("bodies must not share"),
+        "{msg}"
+    );
+    let msg = new(
+        surface.clone(),
+        &masses,
+        1e-4,
+        vec![Wall::plane([0.0; 3], [0.0; 3])],
+    );
+    assert!(
+        msg.contains("wall 0") && msg.contains("plane normal"),
+        "{msg}"
+    );
+    let msg = new(
+        surface.clone(),
+        &masses,
+        1e-4,
+        vec![Wall::cylinder([0.0; 3], [0.0, 0.0, 1.0], -1.0)],
+    );
+    assert!(msg.contains("radius"), "{msg}");
+
+    let mut model = ContactModel::new(p, surface, vec![], &masses, 1e-4).unwrap();
+    let mut x = vec![
+        [0.0, 0.0, 0.0],
+        [1e-2, 0.0, 0.0],
+        [0.0, 1e-2, 0.0],
+        [1e-3, 1e-3, 1e-3],
+    ];
+    let v = vec![[0.0; 3]; 4];
+    let mut f = vec![[0.0; 3]; 4];
+    let msg = model
+        .add_forces(&x[..3], &v, 0.0, 1e-7, &mut f)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("`positions` has 3 entries but 4"), "{msg}");
+    let msg = model
+        .add_forces(&x, &v, 0.0, 0.0, &mut f)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("dt"), "{msg}");
+    x[3][1] = f64::NAN;
+    let msg = model
+        .add_forces(&x, &v, 0.0, 1e-7, &mut f)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("position of surface node 3 (body 1)") && msg.contains("reduce the time step"),
+        "{msg}"
+    );
+}
