@@ -11,12 +11,13 @@ use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
 use fdem_scaling::ScaleLaw;
 use std::process::ExitCode;
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  triaxial   the main job (currently: the preflight of the paper's test series)";
+const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  triaxial   the main job (currently: the preflight of the paper's test series)\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("triaxial") => triaxial(&args[1..]),
+        Some("docs") => docs(),
         Some("-h" | "--help") | None => {
             println!("{USAGE}");
             Ok(())
@@ -135,5 +136,25 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
     println!(
         "the plain variants keep p_n = {NORMAL_PENALTY:.1e} N/m^3. Full factor table: `fdem scale --h H`."
     );
+    Ok(())
+}
+
+/// Markers around the generated table in docs/SCALING.md.
+pub const TABLE_BEGIN: &str = "<!-- BEGIN GENERATED: cargo xtask docs -->";
+/// End marker.
+pub const TABLE_END: &str = "<!-- END GENERATED -->";
+
+/// Rewrites the generated table of docs/SCALING.md from fdem-scaling.
+fn docs() -> anyhow::Result<()> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/SCALING.md");
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let (Some(begin), Some(end)) = (text.find(TABLE_BEGIN), text.find(TABLE_END)) else {
+        bail!("{} lacks the generated-table markers", path.display());
+    };
+    let table = fdem_scaling::markdown_table()?;
+    let updated = format!("{}{TABLE_BEGIN}\n{table}{}", &text[..begin], &text[end..]);
+    std::fs::write(&path, updated).with_context(|| format!("writing {}", path.display()))?;
+    println!("regenerated the scaling table in {}", path.display());
     Ok(())
 }

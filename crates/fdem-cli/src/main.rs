@@ -18,12 +18,14 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Print the exact-scaling factor of every catalogued quantity (paper Table 1).
+    /// Print the exact-scaling factors (paper Table 1), or exactly scale a scene file.
     Scale(commands::scale::ScaleArgs),
     /// Build a tetrahedral sphere mesh and print its statistics (optionally write VTU).
     Mesh(commands::mesh::MeshArgs),
     /// Run a scene file (TOML) and write its outputs to a directory.
     Run(commands::run::RunArgs),
+    /// Coarse-grain a scene: particle sizes x h in the same domain (optionally with exact scaling).
+    Coarsen(commands::coarsen::CoarsenArgs),
 }
 
 fn main() -> ExitCode {
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         Command::Scale(args) => commands::scale::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Run(args) => commands::run::run(&args),
+        Command::Coarsen(args) => commands::coarsen::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

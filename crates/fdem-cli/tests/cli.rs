@@ -243,3 +243,104 @@ fn run_refuses_a_bad_scene_in_one_line_and_writes_nothing() {
         1
     );
 }
+
+#[test]
+fn scale_and_coarsen_work_on_every_example_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let examples = format!("{}/../../examples/scenes", env!("CARGO_MANIFEST_DIR"));
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&examples).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        seen += 1;
+        let p = path.to_str().unwrap();
+        let scaled = dir.path().join("scaled.toml");
+        let out = fdem(&[
+            "scale",
+            p,
+            "--h",
+            "2.5",
+            "--out",
+            scaled.to_str().unwrap(),
+            "--format",
+            "json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{p}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(v["fields"].as_array().is_some_and(|f| !f.is_empty()));
+        // The scaled scene loads and its duration is 2.5 times the original's.
+        let a = fdem_solver::Scene::load(&path).unwrap();
+        let b = fdem_solver::Scene::load(&scaled).unwrap();
+        assert!((b.simulation.duration / a.simulation.duration - 2.5).abs() < 1e-12);
+        for exact in [false, true] {
+            let cg = dir.path().join("cg.toml");
+            let mut args = vec!["coarsen", p, "--h", "2", "--out", cg.to_str().unwrap()];
+            if exact {
+                args.push("--exact-scaling");
+            }
+            let out = fdem(&args);
+            assert!(
+                out.status.success(),
+                "{p}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let c = fdem_solver::Scene::load(&cg).unwrap();
+            assert_eq!(c.particles[0].diameter, 2.0 * a.particles[0].diameter);
+            let penalty = c.contact.unwrap().normal_penalty;
+            let expected = a.contact_section().normal_penalty / if exact { 2.0 } else { 1.0 };
+            assert_eq!(penalty, expected);
+        }
+    }
+    assert!(seen >= 2);
+    // Bad input: h <= 0 and a scene that fails to load, one line each, nothing written.
+    let out_path = dir.path().join("never.toml");
+    for args in [
+        vec![
+            "scale",
+            "/nonexistent.toml",
+            "--h",
+            "2",
+            "--out",
+            out_path.to_str().unwrap(),
+        ],
+        vec![
+            "coarsen",
+            "/nonexistent.toml",
+            "--h",
+            "2",
+            "--out",
+            out_path.to_str().unwrap(),
+        ],
+    ] {
+        let out = fdem(&args);
+        assert!(!out.status.success());
+        assert_eq!(
+            String::from_utf8_lossy(&out.stderr)
+                .trim_end()
+                .lines()
+                .count(),
+            1
+        );
+    }
+    let ex = format!("{examples}/two_particles.toml");
+    for h in ["0", "-1", "x"] {
+        for cmd in ["scale", "coarsen"] {
+            let out = fdem(&[cmd, &ex, "--h", h, "--out", out_path.to_str().unwrap()]);
+            assert!(!out.status.success(), "{cmd} --h {h}");
+            assert_eq!(
+                String::from_utf8_lossy(&out.stderr)
+                    .trim_end()
+                    .lines()
+                    .count(),
+                1
+            );
+        }
+    }
+    assert!(!out_path.exists());
+}

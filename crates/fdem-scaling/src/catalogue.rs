@@ -63,6 +63,7 @@ pub const CATALOGUE: &[Quantity] = &[
     q("volume", "V", "m^3", 3, 0, 0),
     q("area", "A", "m^2", 2, 0, 0),
     q("strain_rate", "eps_dot", "1/s", 0, -1, 0),
+    q("ratio", "-", "1", 0, 0, 0),
 ];
 
 /// Looks a quantity up by its snake_case name.

@@ -40,6 +40,36 @@ impl Rational {
     }
 }
 
+impl Rational {
+    /// `self + other`.
+    pub fn plus(self, other: Rational) -> Rational {
+        // Denominators here are tiny (from 2x2 integer systems): no overflow.
+        Rational::new(
+            self.num * other.den + other.num * self.den,
+            self.den * other.den,
+        )
+        .unwrap_or(self)
+    }
+
+    /// `self * n`.
+    pub fn times(self, n: i64) -> Rational {
+        Rational::new(self.num * n, self.den).unwrap_or(self)
+    }
+}
+
+impl HExponents {
+    /// The exponent `e` of h in the factor `h^e` of a quantity of dimension `d`:
+    /// `e = a + b p + c q` for `d = L^a T^b M^c`, `lambda_T = h^p`, `lambda_M = h^q`.
+    pub fn of(&self, d: crate::Dimension) -> Rational {
+        Rational {
+            num: d.length as i64,
+            den: 1,
+        }
+        .plus(self.time.times(d.time as i64))
+        .plus(self.mass.times(d.mass as i64))
+    }
+}
+
 impl fmt::Display for Rational {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.as_integer() {

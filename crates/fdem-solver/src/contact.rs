@@ -68,4 +68,8 @@ impl ForceContribution for ContactForces {
     fn as_contact(&self) -> Option<&ContactForces> {
         Some(self)
     }
+
+    fn as_contact_mut(&mut self) -> Option<&mut ContactForces> {
+        Some(self)
+    }
 }

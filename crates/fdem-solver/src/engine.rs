@@ -377,6 +377,13 @@ impl Simulation {
         self.contributions.iter().find_map(|c| c.as_contact())
     }
 
+    /// The contact contribution, mutable (e.g. to restore friction history from a file).
+    pub fn contact_mut(&mut self) -> Option<&mut crate::ContactForces> {
+        self.contributions
+            .iter_mut()
+            .find_map(|c| c.as_contact_mut())
+    }
+
     /// Stops the run if the energy balance error has grown past the guard's tolerance.
     pub fn check_energy(&self) -> Result<EnergyReport, SolverError> {
         let e = self.energy();

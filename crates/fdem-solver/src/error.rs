@@ -56,14 +56,14 @@ pub enum SolverError {
         reason: String,
     },
     /// Reading or writing a file failed.
-    #[error("{action} {path}: {source}")]
+    #[error("{action} {path}: {cause}")]
     Io {
         /// What was being done ("writing", "reading", "creating directory").
         action: &'static str,
         /// The path involved.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error (in the message, not chained, so it is printed once).
+        cause: std::io::Error,
     },
     /// The run was interrupted by the user; outputs up to the last output time are kept.
     #[error(
@@ -81,12 +81,12 @@ impl SolverError {
     pub(crate) fn io(
         action: &'static str,
         path: impl Into<PathBuf>,
-        source: std::io::Error,
+        cause: std::io::Error,
     ) -> Self {
         SolverError::Io {
             action,
             path: path.into(),
-            source,
+            cause,
         }
     }
 }

@@ -63,6 +63,10 @@ pub trait ForceContribution: Send {
     fn as_contact(&self) -> Option<&crate::ContactForces> {
         None
     }
+    /// The contribution as mutable contact forces, if it is one (to restore history).
+    fn as_contact_mut(&mut self) -> Option<&mut crate::ContactForces> {
+        None
+    }
 }
 
 /// The elements of one body with its node range.

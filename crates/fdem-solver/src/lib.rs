@@ -17,6 +17,7 @@
 
 mod body;
 mod contact;
+mod dimensions;
 mod engine;
 mod error;
 mod forces;
@@ -27,6 +28,7 @@ mod state;
 
 pub use body::{Body, BodyMotion};
 pub use contact::ContactForces;
+pub use dimensions::{Applied, Field, Role};
 pub use engine::{EnergyReport, Guard, Simulation, TimeStep};
 pub use error::SolverError;
 pub use forces::{BodyElements, ElasticForces, ForceContribution, NodeView, Powers, StepBound};

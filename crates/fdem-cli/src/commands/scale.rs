@@ -3,10 +3,16 @@
 use super::{Format, positive_number};
 use fdem_scaling::{ScaleLaw, table};
 use serde_json::{Map, Value, json};
+use std::path::PathBuf;
 
 /// Arguments of `fdem scale`.
 #[derive(clap::Args, Debug)]
 pub struct ScaleArgs {
+    /// Scene file to scale exactly (omit to print the factor table only).
+    scene: Option<PathBuf>,
+    /// Where to write the scaled scene (required with a scene).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
     /// Length scale factor h (> 0): the scaled system's lengths are h times the original's.
     #[arg(long = "h", value_name = "H", allow_hyphen_values = true)]
     h: String,
@@ -19,6 +25,21 @@ pub struct ScaleArgs {
 pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
     let h = positive_number("--h", &args.h)?;
     let law = ScaleLaw::exact(h)?;
+    if let Some(scene_path) = &args.scene {
+        let out = args
+            .out
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("--out FILE is required when scaling a scene"))?;
+        let scene = fdem_solver::Scene::load(scene_path)?;
+        let (scaled, applied) = scene.scaled(&law);
+        super::write_scene(
+            &scaled,
+            out,
+            &format!("exactly scaled by h = {h} from {}", scene_path.display()),
+        )?;
+        super::print_applied(&applied, args.format)?;
+        return Ok(());
+    }
     let rows = table(&law);
     match args.format {
         Format::Json => {
