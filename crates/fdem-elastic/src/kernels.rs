@@ -717,3 +717,15 @@ mod tests {
         [v[0] * s, v[1] * s, v[2] * s]
     }
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::TetRef;
+
+    /// The per-element memory stated in docs/PERFORMANCE.md.
+    #[test]
+    fn element_records_are_compact() {
+        assert_eq!(std::mem::size_of::<TetRef<4>>(), 96);
+        assert_eq!(std::mem::size_of::<TetRef<10>>(), 120);
+    }
+}
