@@ -90,3 +90,15 @@ impl SolverError {
         }
     }
 }
+
+impl From<crate::toml_input::InputError> for SolverError {
+    fn from(e: crate::toml_input::InputError) -> Self {
+        SolverError::Scene {
+            file: e.file,
+            line: e.line,
+            column: e.column,
+            key: e.key,
+            message: e.message,
+        }
+    }
+}

@@ -25,6 +25,7 @@ pub mod output;
 mod run;
 mod scene;
 mod state;
+pub mod toml_input;
 
 pub use body::{Body, BodyMotion};
 pub use contact::ContactForces;

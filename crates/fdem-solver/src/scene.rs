@@ -380,35 +380,10 @@ fn quaternion_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D
 /// A key name and whether the table has it.
 type KeyPresence<'a> = (&'a str, bool);
 
-/// 1-based line and column of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let before = &text[..offset];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rfind('\n').map_or(offset, |p| offset - p - 1) + 1;
-    (line, column)
-}
-
 impl Scene {
     /// Parses a scene from TOML text; `origin` names the file in error messages.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Scene, SolverError> {
-        let error = |span: Option<std::ops::Range<usize>>, key: String, message: String| {
-            let (line, column) = span.map_or((0, 0), |s| line_column(text, s.start));
-            SolverError::Scene {
-                file: origin.to_string(),
-                line,
-                column,
-                key,
-                message,
-            }
-        };
-        let de = toml::Deserializer::parse(text)
-            .map_err(|e| error(e.span(), "<document>".into(), e.message().to_string()))?;
-        let scene: Scene = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.into_inner();
-            error(inner.span(), key, inner.message().to_string())
-        })?;
+        let scene: Scene = crate::toml_input::parse_toml(text, origin)?;
         scene.check_consistency(origin)?;
         Ok(scene)
     }

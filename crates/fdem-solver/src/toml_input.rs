@@ -1,0 +1,65 @@
+//! Reading TOML input files with errors that name the key path, line and column.
+//!
+//! Shared by every TOML schema of the project (scenes here, specimens in fdem-triaxial):
+//! range checks live in `deserialize_with` functions, so a bad value is reported where it
+//! is, as `file:line:column: key.path: what is wrong and how to fix it`.
+
+use serde::de::DeserializeOwned;
+use std::fmt;
+
+/// A TOML file that does not parse or does not fit its schema.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct InputError {
+    /// The file (or another name for the text's origin).
+    pub file: String,
+    /// 1-based line of the offending key or value (0 when unknown).
+    pub line: usize,
+    /// 1-based column (0 when unknown).
+    pub column: usize,
+    /// Key path such as `particle[2].diameter` (`<document>` for syntax errors).
+    pub key: String,
+    /// What is wrong and how to fix it.
+    pub message: String,
+}
+
+impl fmt::Display for InputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}:{}:{}: {}: {}",
+            self.file, self.line, self.column, self.key, self.message
+        )
+    }
+}
+
+impl std::error::Error for InputError {}
+
+/// 1-based line and column of byte `offset` in `text`.
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rfind('\n').map_or(offset, |p| offset - p - 1) + 1;
+    (line, column)
+}
+
+/// Deserializes `text` as `T`; errors carry the key path and the position of the value.
+pub fn parse_toml<T: DeserializeOwned>(text: &str, origin: &str) -> Result<T, InputError> {
+    let error = |span: Option<std::ops::Range<usize>>, key: String, message: String| {
+        let (line, column) = span.map_or((0, 0), |s| line_column(text, s.start));
+        InputError {
+            file: origin.to_string(),
+            line,
+            column,
+            key,
+            message,
+        }
+    };
+    let de = toml::Deserializer::parse(text)
+        .map_err(|e| error(e.span(), "<document>".into(), e.message().to_string()))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let key = e.path().to_string();
+        let inner = e.into_inner();
+        error(inner.span(), key, inner.message().to_string())
+    })
+}
