@@ -26,6 +26,8 @@ enum Command {
     Run(commands::run::RunArgs),
     /// Coarse-grain a scene: particle sizes x h in the same domain (optionally with exact scaling).
     Coarsen(commands::coarsen::CoarsenArgs),
+    /// Specimens of the triaxial test: counts, preparation by the dynamic method, saved files.
+    Specimen(commands::specimen::SpecimenArgs),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Coarsen(args) => commands::coarsen::run(&args),
+        Command::Specimen(args) => commands::specimen::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -951,3 +951,109 @@ impl Ctx<'_> {
         });
     }
 }
+
+/// Export and import of the tangential (friction) history, so that a simulation can be
+/// saved and resumed bit-for-bit (for example a prepared triaxial specimen).
+impl ContactModel {
+    /// The tangential history kept for the next evaluation: one entry per active contact of
+    /// the last evaluation, `(global node id, counterpart, elastic tangential displacement
+    /// d_s in m)`, sorted by surface node, then counterpart (bodies before walls).
+    ///
+    /// This is everything [`ContactModel::add_forces`] carries from one step to the next
+    /// besides the broad phase (which is rebuilt on demand and does not change results).
+    pub fn export_history(&self) -> Vec<(usize, Counterpart, [f64; 3])> {
+        self.contacts
+            .iter()
+            .map(|c| (c.node, c.counterpart, c.tangential_displacement))
+            .collect()
+    }
+
+    /// Replaces the tangential history by `history` (as returned by
+    /// [`ContactModel::export_history`] of a model built on the same surface and walls) and
+    /// requests a broad-phase rebuild. The next [`ContactModel::add_forces`] continues every
+    /// listed contact from its displacement; contacts not listed start from zero.
+    ///
+    /// Until that evaluation, [`ContactModel::node_contacts`] lists the imported entries
+    /// with zero forces, depths and positions (only the history is meaningful).
+    ///
+    /// # Errors
+    /// Nothing is changed when an entry names a node that is not a surface node of this
+    /// model, a body that does not exist or is the node's own, a wall index out of range,
+    /// a non-finite displacement, or the same (node, counterpart) twice.
+    pub fn import_history(
+        &mut self,
+        history: &[(usize, Counterpart, [f64; 3])],
+    ) -> Result<(), ContactError> {
+        let fix = "import a history exported from a contact model built on the same \
+                   assembly and walls";
+        let index: std::collections::HashMap<usize, usize> = self
+            .surface
+            .surface_nodes
+            .iter()
+            .enumerate()
+            .map(|(k, &node)| (node, k))
+            .collect();
+        let n_bodies = self.surface.node_body.iter().map(|&b| b as u64 + 1).max();
+        let n_bodies = n_bodies.unwrap_or(0);
+        let mut contacts = Vec::with_capacity(history.len());
+        for (i, &(node, counterpart, displacement)) in history.iter().enumerate() {
+            let Some(&k) = index.get(&node) else {
+                return Err(ContactError::InconsistentSurface {
+                    what: format!("history entry {i}: node {node} is not a surface node"),
+                    fix,
+                });
+            };
+            let body = self.surface.node_body[k];
+            let valid = match counterpart {
+                Counterpart::Body(b) => b != body && (b as u64) < n_bodies,
+                Counterpart::Wall(w) => (w as usize) < self.walls.len(),
+            };
+            if !valid {
+                return Err(ContactError::InconsistentSurface {
+                    what: format!(
+                        "history entry {i}: node {node} (body {body}) cannot touch {counterpart} \
+                         ({n_bodies} bodies, {} walls)",
+                        self.walls.len()
+                    ),
+                    fix,
+                });
+            }
+            if !is_finite(displacement) {
+                return Err(ContactError::NonFinite {
+                    quantity: "tangential history",
+                    node,
+                    body,
+                    value: displacement,
+                });
+            }
+            contacts.push(NodeContact {
+                key: history_key(k, counterpart),
+                node,
+                body,
+                counterpart,
+                face: None,
+                weights: [0.0; 3],
+                position: [0.0; 3],
+                contact_point: [0.0; 3],
+                depth: 0.0,
+                normal_force: [0.0; 3],
+                tangential_force: [0.0; 3],
+                tangential_displacement: displacement,
+                sliding: false,
+            });
+        }
+        contacts.sort_by_key(|c| c.key);
+        if let Some(pair) = contacts.windows(2).find(|p| p[0].key == p[1].key) {
+            return Err(ContactError::InconsistentSurface {
+                what: format!(
+                    "the history lists node {} against {} twice",
+                    pair[0].node, pair[0].counterpart
+                ),
+                fix,
+            });
+        }
+        self.contacts = contacts;
+        self.rebuild_requested = true;
+        Ok(())
+    }
+}

@@ -1,7 +1,63 @@
-//! # fdem-triaxial (not yet implemented)
+//! # fdem-triaxial: specimens of the numerical triaxial test
 //!
-//! Will own the numerical triaxial test of the source paper: the specimen catalogue
-//! (Tables 2 and 4), particle counts, preparation by the dynamic method, the flexible
-//! membrane, consolidation and shear loading, and the measurements of paper eqs 12-15.
-//! This crate is an empty placeholder until the specimen and triaxial issues fill it.
+//! This crate owns the first half of the source paper's triaxial test (MODEL.md sections
+//! 5-8): what a specimen is, how many particles it holds, and how it is prepared, saved
+//! and reused. The second half (membrane, consolidation, shear, measurements) will live
+//! here too.
+//!
+//! # What it owns
+//! - **Definitions** ([`SpecimenSpec`]): geometry, membrane, gradation (sizes with mass
+//!   fractions), nominal solid fraction or particle count, material and contact
+//!   parameters, mesh, confining pressure, loading velocity, coarse-graining factor `h`
+//!   and exact scaling, and the preparation settings; read from TOML (schema in
+//!   docs/SPECIMENS.md) and validated before any work, with one line naming the key.
+//!   The twelve tests of the paper's Table 4 are [`PRESETS`].
+//! - **Exact scaling of a specimen** ([`SpecimenSpec::simulated`]): particle sizes x h,
+//!   and with exact scaling every material and contact parameter times its factor from
+//!   `fdem_scaling::ScaleLaw::exact(h)`; no scale factor is typed here.
+//! - **The count rule** ([`SpecimenSpec::counts`]): `n_i = floor(V_s f_i / (pi d_i^3 / 6))`
+//!   with `V_s = phi pi r^2 H` inside the membrane; elements and nodes from the mesh.
+//! - **Placement** ([`place_spheres`]): random non-overlapping spheres in a cylinder,
+//!   largest first, through a uniform grid, with random orientations; seeded.
+//! - **Preparation by the dynamic method** ([`prepare`]): compaction by two rigid
+//!   platens inside a rigid cylinder to the target height, settling, and the checks of the
+//!   result ([`Checks`]); progress through an [`Observer`].
+//! - **Specimen files** ([`PreparedSpecimen::save`], [`PreparedSpecimen::load`]): a
+//!   versioned, checksummed binary format with a TOML header; a reload is bit-for-bit.
+//!
+//! # What it does not own
+//! Time integration, forces and scenes (`fdem-solver`), contact (`fdem-contact`), meshes
+//! (`fdem-mesh`), dimensions and scale laws (`fdem-scaling`), progress bars and printing
+//! (`fdem-cli`).
+//!
+//! # Example: the counts of test E1 (paper Table 2)
+//! ```
+//! use fdem_triaxial::Preset;
+//!
+//! let counts = Preset::find("E1")?.spec().counts()?;
+//! assert_eq!((counts.particles, counts.elements, counts.nodes), (15186, 1214880, 3113130));
+//! # Ok::<(), fdem_triaxial::TriaxialError>(())
+//! ```
 #![warn(missing_docs)]
+
+mod counts;
+mod error;
+mod file;
+mod placement;
+mod prepare;
+mod spec;
+
+pub use counts::{ClassCount, Counts, sphere_volume};
+pub use error::TriaxialError;
+pub use file::{FORMAT_VERSION, MAGIC};
+pub use placement::{Column, MAX_ATTEMPTS, NoRoom, PlacedParticle, place_spheres, random_rotation};
+pub use prepare::{
+    COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer, Phase,
+    PreparationReport, PreparedSpecimen, Silent, Snapshot, Status, WALL_BOTTOM, WALL_CYLINDER,
+    WALL_TOP, particle_sections, preparation_walls, prepare, unbalanced_force_ratio,
+};
+pub use spec::{
+    DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,
+    ORIGINAL_SIZE, PRESETS, PreparationSection, Preset, Simulated, SizeClass, SpecimenMesh,
+    SpecimenSpec, default_material,
+};

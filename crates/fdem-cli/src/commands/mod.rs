@@ -4,6 +4,7 @@ pub mod coarsen;
 pub mod mesh;
 pub mod run;
 pub mod scale;
+pub mod specimen;
 
 use anyhow::{Context, bail};
 

@@ -1,0 +1,388 @@
+//! `fdem specimen`: the paper's test catalogue and user specimens: counts, preparation by
+//! the dynamic method, and prepared-specimen files (docs/SPECIMENS.md).
+
+use anyhow::{Context, bail};
+use fdem_mesh::ElementOrder;
+use fdem_triaxial::{
+    Counts, Observer, PRESETS, Phase, PreparationReport, PreparedSpecimen, Preset, SpecimenSpec,
+    Status, prepare,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Element order as typed on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderArg {
+    /// 4-node tetrahedra.
+    Linear,
+    /// 10-node tetrahedra.
+    Quadratic,
+}
+
+/// Arguments of `fdem specimen`.
+#[derive(clap::Args, Debug)]
+pub struct SpecimenArgs {
+    /// A test of the paper's Table 4: E1, E2, E3, E4, E2s, E3s, E4s, B1, B2, B3, B2s, B3s.
+    #[arg(long, value_name = "NAME")]
+    test: Option<String>,
+    /// A user specimen definition (TOML, schema in docs/SPECIMENS.md).
+    #[arg(long, value_name = "SPEC.toml")]
+    file: Option<PathBuf>,
+    /// A prepared specimen file (written by --prepare): verify it and print its summary.
+    #[arg(long, value_name = "FILE")]
+    specimen: Option<PathBuf>,
+    /// List the built-in tests with their counts.
+    #[arg(long)]
+    list: bool,
+    /// Print the particle, element and node counts.
+    #[arg(long)]
+    counts: bool,
+    /// Prepare the specimen by the dynamic method and write it to --out.
+    #[arg(long)]
+    prepare: bool,
+    /// The prepared-specimen file to write (with --prepare).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Print the specimen definition as TOML (a starting point for a user file).
+    #[arg(long)]
+    toml: bool,
+    /// Override the mesh subdivision level (0 to 4).
+    #[arg(long)]
+    level: Option<u32>,
+    /// Override the element order.
+    #[arg(long, value_enum)]
+    order: Option<OrderArg>,
+    /// Override the placement seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Print results as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+/// Progress on stderr: one line per phase, and a bar with an estimate on a terminal.
+struct Progress {
+    bar: Option<ProgressBar>,
+    terminal: bool,
+    interrupt: Arc<AtomicBool>,
+}
+
+impl Observer for Progress {
+    fn phase(&mut self, phase: Phase, planned_steps: u64) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
+        }
+        match phase {
+            Phase::Place => eprintln!("place: random loose packing"),
+            Phase::Compact => eprintln!("compact: {planned_steps} steps"),
+            Phase::Settle => eprintln!("settle: at most {planned_steps} steps"),
+        }
+        if self.terminal && planned_steps > 0 {
+            let bar = ProgressBar::new(planned_steps);
+            if let Ok(style) = ProgressStyle::with_template(
+                "{prefix:>8} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
+            ) {
+                bar.set_style(style);
+            }
+            bar.set_prefix(phase.name());
+            self.bar = Some(bar);
+        }
+    }
+
+    fn progress(&mut self, _phase: Phase, status: &Status) -> bool {
+        if let Some(bar) = &self.bar {
+            bar.set_position(status.step);
+            let mut msg = format!(
+                "gap {:.4} m, {} contacts",
+                status.platen_gap, status.contacts
+            );
+            if let Some(r) = status.unbalanced_force {
+                msg.push_str(&format!(", unbalanced {r:.2e}"));
+            }
+            bar.set_message(msg);
+        }
+        !self.interrupt.load(Ordering::SeqCst)
+    }
+}
+
+/// The definition named by --test or --file, with the command-line overrides applied.
+fn definition(args: &SpecimenArgs) -> anyhow::Result<SpecimenSpec> {
+    let mut spec = match (&args.test, &args.file) {
+        (Some(name), None) => Preset::find(name)?.spec(),
+        (None, Some(path)) => SpecimenSpec::load(path)?,
+        _ => bail!("give one of --test NAME, --file SPEC.toml or --specimen FILE"),
+    };
+    if let Some(level) = args.level {
+        spec.mesh.level = level;
+    }
+    if let Some(order) = args.order {
+        spec.mesh.order = match order {
+            OrderArg::Linear => ElementOrder::Linear,
+            OrderArg::Quadratic => ElementOrder::Quadratic,
+        };
+    }
+    if let Some(seed) = args.seed {
+        spec.seed = seed;
+    }
+    let origin = args.file.as_ref().map_or_else(
+        || format!("preset {}", spec.name),
+        |p| p.display().to_string(),
+    );
+    spec.validate(&origin)?;
+    Ok(spec)
+}
+
+/// The one-line JSON of `--counts --json`, keys in the documented order.
+pub fn counts_json(counts: &Counts) -> String {
+    format!(
+        r#"{{"particles":{},"elements":{},"nodes":{}}}"#,
+        counts.particles, counts.elements, counts.nodes
+    )
+}
+
+fn print_counts(name: &str, counts: &Counts) {
+    println!(
+        "{name}: {} particles, {} elements, {} nodes ({} elements and {} nodes per particle); \
+         nominal solid fraction {:.4}",
+        counts.particles,
+        counts.elements,
+        counts.nodes,
+        counts.elements_per_particle,
+        counts.nodes_per_particle,
+        counts.solid_fraction
+    );
+    println!(
+        "{:>14} {:>14} {:>12}",
+        "diameter (m)", "mass fraction", "particles"
+    );
+    for c in &counts.classes {
+        println!(
+            "{:>14} {:>14} {:>12}",
+            c.diameter, c.mass_fraction, c.particles
+        );
+    }
+}
+
+fn print_report(r: &PreparationReport) {
+    println!(
+        "{} particles, {} nodes, {} elements; loose column {:.4} m -> {:.4} m",
+        r.particles, r.nodes, r.elements, r.loose_height, r.target_height
+    );
+    println!(
+        "steps: {} compaction + {} settling (dt {:.3e} s, settled: {}); {:.1} s wall, {} CPU, {} threads",
+        r.compact_steps,
+        r.settle_steps,
+        r.dt,
+        r.settled,
+        r.wall_seconds,
+        r.cpu_seconds
+            .map_or_else(|| "unknown".to_string(), |c| format!("{c:.1} s")),
+        r.threads
+    );
+    println!(
+        "solid fraction: nominal {:.4}, real {:.4}; coordination number {:.2}; \
+         stress on the platens {:.3e} Pa, on the cylinder {:.3e} Pa",
+        r.solid_fraction_nominal,
+        r.solid_fraction_real,
+        r.coordination_number,
+        r.platen_stress,
+        r.cylinder_stress
+    );
+    let c = &r.checks;
+    println!(
+        "checks: {} particles outside, overlap {:.3e} m and wall penetration {:.3e} m (limit {:.3e} m), \
+         unbalanced force {:.3e} (limit {})",
+        c.particles_outside,
+        c.max_overlap,
+        c.max_wall_penetration,
+        c.overlap_limit,
+        c.unbalanced_force,
+        c.unbalanced_force_limit
+    );
+}
+
+fn list(json_out: bool) -> anyhow::Result<()> {
+    let mut rows = Vec::new();
+    for p in PRESETS {
+        let spec = p.spec();
+        let counts = spec.counts()?;
+        let sizes: Vec<f64> = counts.classes.iter().map(|c| c.diameter).collect();
+        rows.push((p, sizes, counts));
+    }
+    if json_out {
+        let tests: Vec<serde_json::Value> = rows
+            .iter()
+            .map(|(p, sizes, c)| {
+                json!({
+                    "test": p.name, "diameters": sizes, "coarse_graining": p.coarse_graining,
+                    "exact_scaling": p.exact_scaling, "particles": c.particles,
+                    "elements": c.elements, "nodes": c.nodes,
+                })
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({ "tests": tests }))?
+        );
+    } else {
+        println!(
+            "{:<5} {:<16} {:>5} {:>6} {:>10} {:>10} {:>10}",
+            "test", "diameters (mm)", "h", "exact", "particles", "elements", "nodes"
+        );
+        for (p, sizes, c) in rows {
+            let mm: Vec<String> = sizes.iter().map(|d| format!("{}", d * 1e3)).collect();
+            println!(
+                "{:<5} {:<16} {:>5} {:>6} {:>10} {:>10} {:>10}",
+                p.name,
+                mm.join("-"),
+                p.coarse_graining,
+                if p.exact_scaling { "yes" } else { "no" },
+                c.particles,
+                c.elements,
+                c.nodes
+            );
+        }
+    }
+    Ok(())
+}
+
+fn summary_json(file: &std::path::Path, s: &PreparedSpecimen) -> anyhow::Result<String> {
+    Ok(serde_json::to_string_pretty(&json!({
+        "file": file.display().to_string(),
+        "test": s.spec.name,
+        "format_version": fdem_triaxial::FORMAT_VERSION,
+        "time": s.state.time,
+        "step": s.state.step,
+        "report": serde_json::to_value(&s.report)?,
+    }))?)
+}
+
+/// Runs `fdem specimen`.
+pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
+    if let Some(threads) = args.threads {
+        anyhow::ensure!(threads > 0, "--threads must be at least 1");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    if args.list {
+        return list(args.json);
+    }
+    if args.out.is_some() && !args.prepare {
+        bail!("--out goes with --prepare; add --prepare to prepare the specimen");
+    }
+    if let Some(path) = &args.specimen {
+        if args.test.is_some() || args.file.is_some() || args.prepare {
+            bail!(
+                "--specimen reads a prepared file; it does not go with --test, --file or --prepare"
+            );
+        }
+        let s = PreparedSpecimen::load(path)?;
+        if args.counts {
+            let counts = s.spec.counts()?;
+            if args.json {
+                println!("{}", counts_json(&counts));
+            } else {
+                print_counts(&s.spec.name, &counts);
+            }
+        } else if args.json {
+            println!("{}", summary_json(path, &s)?);
+        } else {
+            println!(
+                "{}: prepared specimen `{}` (format {}), t = {:.4e} s after {} steps",
+                path.display(),
+                s.spec.name,
+                fdem_triaxial::FORMAT_VERSION,
+                s.state.time,
+                s.state.step
+            );
+            print_report(&s.report);
+        }
+        return Ok(());
+    }
+    let spec = definition(args)?;
+    if args.toml {
+        print!("{}", spec.to_toml_string()?);
+        return Ok(());
+    }
+    if args.prepare {
+        let Some(out) = &args.out else {
+            bail!("--prepare needs --out FILE, the prepared-specimen file to write");
+        };
+        let interrupt = Arc::new(AtomicBool::new(false));
+        {
+            let flag = Arc::clone(&interrupt);
+            let _ = ctrlc::set_handler(move || {
+                if flag.swap(true, Ordering::SeqCst) {
+                    std::process::exit(130);
+                }
+            });
+        }
+        let counts = spec.counts()?;
+        eprintln!(
+            "prepare {}: {} particles, {} elements, {} nodes",
+            spec.name, counts.particles, counts.elements, counts.nodes
+        );
+        let mut progress = Progress {
+            bar: None,
+            terminal: std::io::stderr().is_terminal(),
+            interrupt,
+        };
+        let result = prepare(&spec, &mut progress);
+        if let Some(bar) = progress.bar.take() {
+            bar.finish_and_clear();
+        }
+        let prepared = result?;
+        prepared.save(out)?;
+        if args.json {
+            println!("{}", summary_json(out, &prepared)?);
+        } else {
+            print_report(&prepared.report);
+            println!("written to {}", out.display());
+        }
+        let failures = &prepared.report.checks.failures;
+        if !failures.is_empty() {
+            bail!(
+                "the prepared specimen was written to {} but failed its checks: {}",
+                out.display(),
+                failures.join("; ")
+            );
+        }
+        return Ok(());
+    }
+    let counts = spec.counts()?;
+    if args.json {
+        println!("{}", counts_json(&counts));
+    } else {
+        print_counts(&spec.name, &counts);
+        let simulated = spec.simulated()?;
+        for (key, quantity, factor) in &simulated.scaled {
+            println!("exact scaling: {key} ({quantity}) x {factor}");
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_json_is_table_2_for_e1() {
+        let counts = Preset::find("E1")
+            .and_then(|p| p.spec().counts())
+            .map_err(|e| e.to_string());
+        assert_eq!(
+            counts.map(|c| counts_json(&c)),
+            Ok(r#"{"particles":15186,"elements":1214880,"nodes":3113130}"#.to_string())
+        );
+    }
+}

@@ -1,0 +1,345 @@
+//! The prepared-specimen file: a versioned binary format with a TOML header
+//! (docs/SPECIMENS.md, "Specimen files").
+//!
+//! ```text
+//! offset  size          content
+//! 0       8             magic "FDEMSPEC"
+//! 8       4             format version, u32 little-endian (FORMAT_VERSION)
+//! 12      8             header length L in bytes, u64 LE
+//! 20      L             header: UTF-8 TOML (format, versions, [specimen], [report])
+//! 20+L    8 x 3         particle count P, node count N, history count K (u64 LE)
+//!         8 x 3         dt (f64), time (f64), step (u64)
+//!         P x 8 x 8     per particle: diameter, centre x y z, quaternion w x y z (f64)
+//!         P x 8         per particle: size class (u64)
+//!         N x 3 x 8     positions (f64)
+//!         N x 3 x 8     velocities (f64)
+//!         K x 5 x 8     history: node (u64), counterpart (u64: body id, or 2^32 + wall
+//!                       index), tangential displacement x y z (f64)
+//! end-8   8             FNV-1a 64-bit checksum of every byte before it (u64 LE)
+//! ```
+//! Numbers are stored as their IEEE-754 bits, so a reload is exact. The file is written
+//! to `NAME.part` and renamed when complete.
+
+use crate::placement::PlacedParticle;
+use crate::prepare::{PreparationReport, PreparedSpecimen, Snapshot};
+use crate::{SpecimenSpec, TriaxialError};
+use fdem_contact::Counterpart;
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::Path;
+
+/// The eight bytes every specimen file starts with.
+pub const MAGIC: &[u8; 8] = b"FDEMSPEC";
+/// The format version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+/// Bytes before the header text.
+const PREAMBLE: usize = 20;
+/// Bytes of the fixed-size block after the header.
+const FIXED: usize = 48;
+const WALL_FLAG: u64 = 1 << 32;
+
+/// The TOML header of a specimen file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    format: String,
+    format_version: u32,
+    fdem_version: String,
+    specimen: SpecimenSpec,
+    report: PreparationReport,
+}
+
+/// FNV-1a, 64 bits.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+    fn update(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
+/// A writer that checksums what it writes.
+struct Checked<W: Write> {
+    inner: W,
+    hash: Fnv,
+}
+
+impl<W: Write> Checked<W> {
+    fn put(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.hash.update(bytes);
+        self.inner.write_all(bytes)
+    }
+    fn u64(&mut self, v: u64) -> std::io::Result<()> {
+        self.put(&v.to_le_bytes())
+    }
+    fn f64(&mut self, v: f64) -> std::io::Result<()> {
+        self.put(&v.to_le_bytes())
+    }
+}
+
+fn counterpart_code(c: Counterpart) -> u64 {
+    match c {
+        Counterpart::Body(b) => u64::from(b),
+        Counterpart::Wall(w) => WALL_FLAG | u64::from(w),
+    }
+}
+
+impl PreparedSpecimen {
+    /// Writes the specimen to `path` (atomically: `path.part`, then a rename).
+    pub fn save(&self, path: &Path) -> Result<(), TriaxialError> {
+        let header = Header {
+            format: "fdem-specimen".into(),
+            format_version: FORMAT_VERSION,
+            fdem_version: env!("CARGO_PKG_VERSION").into(),
+            specimen: self.spec.clone(),
+            report: self.report.clone(),
+        };
+        let text = toml::to_string(&header).map_err(|e| {
+            TriaxialError::file(path, format!("cannot write the header as TOML: {e}"))
+        })?;
+        let mut part = path.as_os_str().to_owned();
+        part.push(".part");
+        let part = std::path::PathBuf::from(part);
+        let file =
+            std::fs::File::create(&part).map_err(|e| TriaxialError::io("creating", &part, e))?;
+        let mut w = Checked {
+            inner: std::io::BufWriter::new(file),
+            hash: Fnv::new(),
+        };
+        let s = &self.state;
+        let result = (|| -> std::io::Result<()> {
+            w.put(MAGIC)?;
+            w.put(&FORMAT_VERSION.to_le_bytes())?;
+            w.u64(text.len() as u64)?;
+            w.put(text.as_bytes())?;
+            w.u64(self.particles.len() as u64)?;
+            w.u64(s.positions.len() as u64)?;
+            w.u64(s.history.len() as u64)?;
+            w.f64(self.dt)?;
+            w.f64(s.time)?;
+            w.u64(s.step)?;
+            for p in &self.particles {
+                w.f64(p.diameter)?;
+                for v in p.center {
+                    w.f64(v)?;
+                }
+                for v in p.orientation {
+                    w.f64(v)?;
+                }
+            }
+            for p in &self.particles {
+                w.u64(p.class as u64)?;
+            }
+            for x in s.positions.iter().chain(&s.velocities) {
+                for &v in x {
+                    w.f64(v)?;
+                }
+            }
+            for &(node, c, d) in &s.history {
+                w.u64(node as u64)?;
+                w.u64(counterpart_code(c))?;
+                for v in d {
+                    w.f64(v)?;
+                }
+            }
+            let sum = w.hash.0;
+            w.inner.write_all(&sum.to_le_bytes())?;
+            let file = w.inner.into_inner().map_err(|e| e.into_error())?;
+            file.sync_all()
+        })();
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(&part);
+            return Err(TriaxialError::io("writing", &part, e));
+        }
+        std::fs::rename(&part, path).map_err(|e| TriaxialError::io("renaming", &part, e))
+    }
+
+    /// Reads a specimen file written by [`PreparedSpecimen::save`], refusing a file of
+    /// another format version, a truncated or corrupted one (checksum) and one whose
+    /// definition or counts do not hold.
+    pub fn load(path: &Path) -> Result<PreparedSpecimen, TriaxialError> {
+        let bytes = std::fs::read(path).map_err(|e| TriaxialError::io("reading", path, e))?;
+        let bad = |m: String| TriaxialError::file(path, m);
+        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+            return Err(bad(
+                "not an fdem specimen file (it does not start with FDEMSPEC); write one with \
+                 `fdem specimen --prepare --out FILE`"
+                    .into(),
+            ));
+        }
+        if bytes.len() < PREAMBLE {
+            return Err(bad(format!(
+                "truncated: {} bytes, less than the {PREAMBLE}-byte preamble",
+                bytes.len()
+            )));
+        }
+        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+        if version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "specimen format version {version}, but this fdem ({}) reads version \
+                 {FORMAT_VERSION} only; prepare the specimen again with this version",
+                env!("CARGO_PKG_VERSION")
+            )));
+        }
+        let mut r = Reader {
+            bytes: &bytes,
+            at: 12,
+        };
+        let truncated = |needed: u64| {
+            bad(format!(
+                "truncated: {} bytes, but the layout needs at least {needed}; the file is \
+                 incomplete (an interrupted copy?)",
+                bytes.len()
+            ))
+        };
+        let header_len = r.u64().ok_or_else(|| truncated(PREAMBLE as u64))?;
+        let body_start = (PREAMBLE as u64).saturating_add(header_len);
+        let fixed_end = body_start.saturating_add(FIXED as u64 + 8);
+        if (bytes.len() as u64) < fixed_end {
+            return Err(truncated(fixed_end));
+        }
+        let header_bytes = &bytes[PREAMBLE..body_start as usize];
+        r.at = body_start as usize;
+        let (n_particles, n_nodes, n_history) = (
+            r.u64().unwrap_or(0),
+            r.u64().unwrap_or(0),
+            r.u64().unwrap_or(0),
+        );
+        let expected = [
+            (n_particles, 9 * 8u64),
+            (n_nodes, 6 * 8),
+            (n_history, 5 * 8),
+        ]
+        .iter()
+        .try_fold(fixed_end, |acc, &(n, size)| {
+            n.checked_mul(size).and_then(|b| acc.checked_add(b))
+        })
+        .ok_or_else(|| bad("corrupted: the counts in the file overflow".into()))?;
+        if (bytes.len() as u64) < expected {
+            return Err(truncated(expected));
+        }
+        if (bytes.len() as u64) > expected {
+            return Err(bad(format!(
+                "corrupted: {} bytes, {} more than the layout holds",
+                bytes.len(),
+                bytes.len() as u64 - expected
+            )));
+        }
+        let end = bytes.len() - 8;
+        let mut hash = Fnv::new();
+        hash.update(&bytes[..end]);
+        let mut stored = [0u8; 8];
+        stored.copy_from_slice(&bytes[end..]);
+        if hash.0 != u64::from_le_bytes(stored) {
+            return Err(bad(
+                "corrupted: the checksum does not match the contents; prepare the specimen again \
+                 or restore the file from a good copy"
+                    .into(),
+            ));
+        }
+        let text = std::str::from_utf8(header_bytes)
+            .map_err(|_| bad("corrupted: the header is not UTF-8".into()))?;
+        let header: Header = toml::from_str(text)
+            .map_err(|e| bad(format!("the header does not parse: {}", e.message())))?;
+        if header.format != "fdem-specimen" || header.format_version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "the header says format `{}` version {}, not fdem-specimen version {FORMAT_VERSION}",
+                header.format, header.format_version
+            )));
+        }
+        let origin = path.display().to_string();
+        header.specimen.validate(&origin)?;
+
+        let dt = r.f64().unwrap_or(f64::NAN);
+        let time = r.f64().unwrap_or(f64::NAN);
+        let step = r.u64().unwrap_or(0);
+        let mut particles = Vec::with_capacity(n_particles as usize);
+        for _ in 0..n_particles {
+            let v: [f64; 8] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+            particles.push(PlacedParticle {
+                diameter: v[0],
+                center: [v[1], v[2], v[3]],
+                orientation: [v[4], v[5], v[6], v[7]],
+                class: 0,
+            });
+        }
+        for p in &mut particles {
+            p.class = r.u64().unwrap_or(0) as usize;
+        }
+        let mut vectors = |n: u64| -> Vec<[f64; 3]> {
+            (0..n)
+                .map(|_| std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN)))
+                .collect()
+        };
+        let positions = vectors(n_nodes);
+        let velocities = vectors(n_nodes);
+        let mut history = Vec::with_capacity(n_history as usize);
+        for i in 0..n_history {
+            let node = r.u64().unwrap_or(0);
+            let code = r.u64().unwrap_or(0);
+            let d: [f64; 3] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+            let index = u32::try_from(code & (WALL_FLAG - 1)).unwrap_or(u32::MAX);
+            let counterpart = match code >> 32 {
+                0 => Counterpart::Body(index),
+                1 => Counterpart::Wall(index),
+                _ => {
+                    return Err(bad(format!(
+                        "corrupted: history entry {i} has counterpart code {code}"
+                    )));
+                }
+            };
+            history.push((node as usize, counterpart, d));
+        }
+
+        // The file must describe the specimen its definition implies.
+        let counts = header.specimen.counts()?;
+        if counts.particles != n_particles || counts.nodes != n_nodes {
+            return Err(bad(format!(
+                "holds {n_particles} particles and {n_nodes} nodes, but its definition implies \
+                 {} and {}",
+                counts.particles, counts.nodes
+            )));
+        }
+        Ok(PreparedSpecimen {
+            spec: header.specimen,
+            particles,
+            dt,
+            state: Snapshot {
+                positions,
+                velocities,
+                history,
+                time,
+                step,
+            },
+            report: header.report,
+        })
+    }
+}
+
+/// Little-endian reader over a byte slice whose length was checked beforehand.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn take8(&mut self) -> Option<[u8; 8]> {
+        let b = self.bytes.get(self.at..self.at + 8)?;
+        self.at += 8;
+        let mut out = [0u8; 8];
+        out.copy_from_slice(b);
+        Some(out)
+    }
+    fn u64(&mut self) -> Option<u64> {
+        self.take8().map(u64::from_le_bytes)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.take8().map(f64::from_le_bytes)
+    }
+}

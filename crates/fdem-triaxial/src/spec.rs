@@ -1,0 +1,812 @@
+//! Specimen definitions: the schema of a user specimen file, the built-in tests of the
+//! paper (Table 4), validation, and the parameters as simulated (coarse graining and
+//! exact scaling).
+
+use crate::TriaxialError;
+use fdem_mesh::{ElementOrder, Sizing};
+use fdem_scaling::ScaleLaw;
+use fdem_solver::{ContactSection, MaterialSection};
+use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
+
+/// Tolerance on the sum of the mass fractions.
+pub const FRACTION_SUM_TOLERANCE: f64 = 1e-6;
+/// Densest packing of equal spheres, `pi / sqrt(18)`: a nominal solid fraction above it
+/// cannot be reached by any arrangement of the particles.
+pub const DENSEST_PACKING: f64 = 0.740_480_489_693_061;
+/// Nominal solid fraction of the paper's specimens, the default (MODEL.md section 7).
+pub const DEFAULT_SOLID_FRACTION: f64 = 0.65;
+/// Inertial number of the default loading velocity (MODEL.md section 8: quasi-static,
+/// `I <= 1e-3`).
+pub const DEFAULT_INERTIAL_NUMBER: f64 = 1e-3;
+
+/// One size class of a gradation: a particle diameter and the share of the solid mass.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SizeClass {
+    /// Nominal particle diameter of the original (h = 1) material (m), > 0. The simulated
+    /// particles are `coarse_graining` times larger.
+    #[serde(deserialize_with = "positive")]
+    pub size: f64,
+    /// Share of the solid mass in this class, in (0, 1]; the shares sum to 1.
+    #[serde(deserialize_with = "fraction")]
+    pub mass_fraction: f64,
+}
+
+/// `[mesh]`: the tetrahedral mesh of every particle (MESHES.md).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpecimenMesh {
+    /// Icosahedron subdivision level 0..=4; default 1 (the paper's 80 tetrahedra).
+    #[serde(default = "default_level", deserialize_with = "level")]
+    pub level: u32,
+    /// `"linear"` or `"quadratic"`; default quadratic (the paper's 205 nodes).
+    #[serde(default = "default_order")]
+    pub order: ElementOrder,
+    /// `"inscribed"` (default, the paper's reading) or `"volume_equivalent"`.
+    #[serde(default)]
+    pub sizing: Sizing,
+}
+
+impl Default for SpecimenMesh {
+    fn default() -> Self {
+        SpecimenMesh {
+            level: default_level(),
+            order: default_order(),
+            sizing: Sizing::Inscribed,
+        }
+    }
+}
+
+/// `[preparation]`: the dynamic method (docs/SPECIMENS.md, "Preparation").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreparationSection {
+    /// Nominal solid fraction of the loose random packing the platens start from, in
+    /// (0, 0.35]; it sets the height of the loose column. Default 0.30.
+    #[serde(default = "default_loose", deserialize_with = "fraction")]
+    pub loose_solid_fraction: f64,
+    /// Closing speed of the two platens together (m/s), > 0; each platen moves at half of
+    /// it. Default 1.0.
+    #[serde(default = "default_platen_speed", deserialize_with = "positive")]
+    pub platen_speed: f64,
+    /// Coulomb friction between particles and with the walls during preparation, >= 0.
+    /// Default 0 (frictionless compaction, see docs/SPECIMENS.md).
+    #[serde(default, deserialize_with = "non_negative")]
+    pub friction: f64,
+    /// Fraction of the stable time-step bound used, in (0, 1]. Default 0.5.
+    #[serde(default = "default_dt_safety", deserialize_with = "fraction")]
+    pub dt_safety: f64,
+    /// Smallest gap between placed spheres, and between spheres and walls, as a fraction
+    /// of the smallest simulated diameter, in (0, 1]. Default 0.02.
+    #[serde(default = "default_clearance", deserialize_with = "fraction")]
+    pub clearance: f64,
+    /// Largest accepted penetration (between particles, and into the walls) at the end,
+    /// as a fraction of the smallest simulated diameter, in (0, 1]. Default 0.02.
+    #[serde(default = "default_max_overlap", deserialize_with = "fraction")]
+    pub max_overlap: f64,
+    /// Settling ends when the unbalanced-force ratio falls to this value, in (0, 1].
+    /// Default 0.02.
+    #[serde(default = "default_unbalanced", deserialize_with = "fraction")]
+    pub unbalanced_force: f64,
+    /// Longest settling time after the platens stop (s), > 0. Default: the time the
+    /// platens take to close by two of the largest simulated diameters.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub settle_time: Option<f64>,
+    /// Steps between unbalanced-force checks while settling, >= 1. Default 100.
+    #[serde(default = "default_check_interval", deserialize_with = "at_least_one")]
+    pub check_interval: u64,
+    /// Gravitational acceleration (m/s^2); default zero (it breaks exact scaling).
+    #[serde(default, deserialize_with = "vector")]
+    pub gravity: [f64; 3],
+}
+
+impl Default for PreparationSection {
+    fn default() -> Self {
+        PreparationSection {
+            loose_solid_fraction: default_loose(),
+            platen_speed: default_platen_speed(),
+            friction: 0.0,
+            dt_safety: default_dt_safety(),
+            clearance: default_clearance(),
+            max_overlap: default_max_overlap(),
+            unbalanced_force: default_unbalanced(),
+            settle_time: None,
+            check_interval: default_check_interval(),
+            gravity: [0.0; 3],
+        }
+    }
+}
+
+/// A specimen: geometry, gradation, material, contact, mesh, test loads and preparation.
+///
+/// The schema of a specimen file (TOML) is documented in docs/SPECIMENS.md. Every length
+/// is in metres, every stress in pascals.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpecimenSpec {
+    /// A name for reports (a preset's is its test name).
+    #[serde(default = "default_name")]
+    pub name: String,
+    /// Outer specimen diameter (m), > 0; the particles fill the inside of the membrane.
+    #[serde(deserialize_with = "positive")]
+    pub diameter: f64,
+    /// Target specimen height (m), > 0.
+    #[serde(deserialize_with = "positive")]
+    pub height: f64,
+    /// Membrane thickness (m), >= 0 and less than the radius; default 0.002.
+    #[serde(default = "default_membrane", deserialize_with = "non_negative")]
+    pub membrane_thickness: f64,
+    /// Nominal solid fraction (nominal sphere volumes over the inner volume), in (0, 0.74].
+    /// Default 0.65 unless `particles` is given.
+    #[serde(
+        default,
+        deserialize_with = "fraction_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub solid_fraction: Option<f64>,
+    /// Total particle count instead of a solid fraction (shared by the size classes in
+    /// proportion to mass fraction over particle volume).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub particles: Option<u64>,
+    /// Coarse-graining factor h > 0: simulated diameters are h times the gradation's.
+    /// Default 1.
+    #[serde(default = "default_one", deserialize_with = "positive")]
+    pub coarse_graining: f64,
+    /// Whether material and contact parameters follow exact scaling by h
+    /// (`ScaleLaw::exact(h)`: only the penalty changes, by 1/h). Default false.
+    #[serde(default)]
+    pub exact_scaling: bool,
+    /// Confining pressure of the test (Pa), > 0; default 0.8e6 (MODEL.md section 8).
+    #[serde(default = "default_confining", deserialize_with = "positive")]
+    pub confining_pressure: f64,
+    /// Axial loading velocity of the test (m/s), > 0; default from the inertial number
+    /// 1e-3 (see [`SpecimenSpec::loading_velocity`]).
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub loading_velocity: Option<f64>,
+    /// Seed of the random placement and orientations. Default 1.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Size classes of the original (h = 1) material, at least one.
+    pub gradation: Vec<SizeClass>,
+    /// `[material]` as in scenes; default rock (2650 kg/m^3, 40 GPa, 0.2).
+    #[serde(default = "default_material")]
+    pub material: MaterialSection,
+    /// `[contact]` as in scenes (the test's law); default the paper's Table 3.
+    #[serde(default)]
+    pub contact: ContactSection,
+    /// `[mesh]`: default level 1 quadratic inscribed (the paper's particle).
+    #[serde(default)]
+    pub mesh: SpecimenMesh,
+    /// `[preparation]`: the dynamic method's settings.
+    #[serde(default)]
+    pub preparation: PreparationSection,
+}
+
+/// One built-in test of the paper (Table 4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preset {
+    /// Test name (`E1` ... `B3s`).
+    pub name: &'static str,
+    /// `true` for the binary series (15 and 30 mm originals, equal mass).
+    pub binary: bool,
+    /// Coarse-graining factor h.
+    pub coarse_graining: f64,
+    /// Whether exact scaling is applied.
+    pub exact_scaling: bool,
+}
+
+const fn preset(name: &'static str, binary: bool, h: f64, exact: bool) -> Preset {
+    Preset {
+        name,
+        binary,
+        coarse_graining: h,
+        exact_scaling: exact,
+    }
+}
+
+/// The twelve tests of the paper (Table 4), in its order.
+pub const PRESETS: &[Preset] = &[
+    preset("E1", false, 1.0, false),
+    preset("E2", false, 2.0, false),
+    preset("E3", false, 3.0, false),
+    preset("E4", false, 4.0, false),
+    preset("E2s", false, 2.0, true),
+    preset("E3s", false, 3.0, true),
+    preset("E4s", false, 4.0, true),
+    preset("B1", true, 1.0, false),
+    preset("B2", true, 1.5, false),
+    preset("B3", true, 2.0, false),
+    preset("B2s", true, 1.5, true),
+    preset("B3s", true, 2.0, true),
+];
+
+/// Diameter of the original particles of both series (m): 15 mm, and 30 mm for the
+/// coarse half of the binary series.
+pub const ORIGINAL_SIZE: f64 = 0.015;
+
+impl Preset {
+    /// Looks a test up by name (case-sensitive, as printed in the paper).
+    pub fn find(name: &str) -> Result<&'static Preset, TriaxialError> {
+        PRESETS
+            .iter()
+            .find(|p| p.name == name)
+            .ok_or_else(|| TriaxialError::UnknownTest {
+                name: name.to_string(),
+                known: PRESETS
+                    .iter()
+                    .map(|p| p.name)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
+    }
+
+    /// The specimen of this test: phi 300 x 600 mm, 2 mm membrane, nominal solid fraction
+    /// 0.65, Table 3 parameters, level-1 quadratic inscribed meshes, default preparation.
+    pub fn spec(&self) -> SpecimenSpec {
+        let gradation = if self.binary {
+            vec![
+                SizeClass {
+                    size: ORIGINAL_SIZE,
+                    mass_fraction: 0.5,
+                },
+                SizeClass {
+                    size: 2.0 * ORIGINAL_SIZE,
+                    mass_fraction: 0.5,
+                },
+            ]
+        } else {
+            vec![SizeClass {
+                size: ORIGINAL_SIZE,
+                mass_fraction: 1.0,
+            }]
+        };
+        SpecimenSpec {
+            name: self.name.to_string(),
+            diameter: 0.300,
+            height: 0.600,
+            membrane_thickness: default_membrane(),
+            solid_fraction: Some(DEFAULT_SOLID_FRACTION),
+            particles: None,
+            coarse_graining: self.coarse_graining,
+            exact_scaling: self.exact_scaling,
+            confining_pressure: default_confining(),
+            loading_velocity: None,
+            seed: default_seed(),
+            gradation,
+            material: default_material(),
+            contact: ContactSection::default(),
+            mesh: SpecimenMesh::default(),
+            preparation: PreparationSection::default(),
+        }
+    }
+}
+
+fn default_name() -> String {
+    "specimen".into()
+}
+fn default_one() -> f64 {
+    1.0
+}
+fn default_membrane() -> f64 {
+    0.002
+}
+fn default_confining() -> f64 {
+    0.8e6
+}
+fn default_seed() -> u64 {
+    1
+}
+fn default_level() -> u32 {
+    1
+}
+fn default_order() -> ElementOrder {
+    ElementOrder::Quadratic
+}
+fn default_loose() -> f64 {
+    0.30
+}
+fn default_platen_speed() -> f64 {
+    1.0
+}
+fn default_dt_safety() -> f64 {
+    0.5
+}
+fn default_clearance() -> f64 {
+    0.02
+}
+fn default_max_overlap() -> f64 {
+    0.02
+}
+fn default_unbalanced() -> f64 {
+    0.02
+}
+fn default_check_interval() -> u64 {
+    100
+}
+
+/// Rock (MODEL.md section 8): 2650 kg/m^3, E = 40 GPa, nu = 0.2.
+pub fn default_material() -> MaterialSection {
+    MaterialSection {
+        density: 2650.0,
+        youngs_modulus: 40.0e9,
+        poisson_ratio: 0.2,
+    }
+}
+
+// ---- single-value rules, shared by deserialization (with line numbers) and validate ----
+
+fn check_positive(v: f64) -> Result<f64, String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be a positive finite number (SI units), got {v}"
+        ))
+    }
+}
+
+fn check_non_negative(v: f64) -> Result<f64, String> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be a finite number >= 0, got {v}"))
+    }
+}
+
+fn check_fraction(v: f64) -> Result<f64, String> {
+    if v > 0.0 && v <= 1.0 {
+        Ok(v)
+    } else {
+        Err(format!("must lie in (0, 1], got {v}"))
+    }
+}
+
+fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    check_positive(f64::deserialize(d)?).map_err(D::Error::custom)
+}
+
+fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    positive(d).map(Some)
+}
+
+fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    check_non_negative(f64::deserialize(d)?).map_err(D::Error::custom)
+}
+
+fn fraction<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    check_fraction(f64::deserialize(d)?).map_err(D::Error::custom)
+}
+
+fn fraction_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    fraction(d).map(Some)
+}
+
+fn at_least_one<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    let v = u64::deserialize(d)?;
+    if v >= 1 {
+        Ok(v)
+    } else {
+        Err(D::Error::custom("must be at least 1"))
+    }
+}
+
+fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = i64::deserialize(d)?;
+    if (0..=i64::from(fdem_mesh::MAX_LEVEL)).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(D::Error::custom(format!(
+            "subdivision level must be 0, 1, 2, 3 or 4, got {v}"
+        )))
+    }
+}
+
+fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    let v = <[f64; 3]>::deserialize(d)?;
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "every component must be finite, got {v:?}"
+        )))
+    }
+}
+
+/// The parameters of a specimen as simulated: particle sizes times h, and (with exact
+/// scaling) material and contact parameters times their `ScaleLaw::exact(h)` factors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Simulated {
+    /// Simulated diameter of each size class (m), in the order of the gradation.
+    pub sizes: Vec<f64>,
+    /// Material.
+    pub material: MaterialSection,
+    /// Contact law of the test.
+    pub contact: ContactSection,
+    /// Friction during preparation.
+    pub preparation_friction: f64,
+    /// Every parameter changed by exact scaling: `(key, quantity, factor)`.
+    pub scaled: Vec<(String, &'static str, f64)>,
+}
+
+impl SpecimenSpec {
+    /// Parses a specimen from TOML text and validates it; `origin` names the file in
+    /// error messages (`file:line:column: key: message`).
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<SpecimenSpec, TriaxialError> {
+        let spec: SpecimenSpec =
+            fdem_solver::toml_input::parse_toml(text, origin).map_err(|e| {
+                TriaxialError::Definition {
+                    origin: e.file,
+                    line: e.line,
+                    column: e.column,
+                    key: e.key,
+                    message: e.message,
+                }
+            })?;
+        spec.validate(origin)?;
+        Ok(spec)
+    }
+
+    /// Reads, parses and validates a specimen file.
+    pub fn load(path: &std::path::Path) -> Result<SpecimenSpec, TriaxialError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| TriaxialError::io("reading specimen definition", path, e))?;
+        SpecimenSpec::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// The specimen as TOML text (the schema of [`SpecimenSpec::from_toml_str`]).
+    pub fn to_toml_string(&self) -> Result<String, TriaxialError> {
+        toml::to_string(self).map_err(|e| TriaxialError::Definition {
+            origin: self.name.clone(),
+            line: 0,
+            column: 0,
+            key: "<document>".into(),
+            message: format!("cannot be written as TOML: {e}"),
+        })
+    }
+
+    /// Inner radius: the outer radius minus the membrane (m).
+    pub fn inner_radius(&self) -> f64 {
+        0.5 * self.diameter - self.membrane_thickness
+    }
+
+    /// Inner cross-section `pi r^2` (m^2).
+    pub fn inner_area(&self) -> f64 {
+        let r = self.inner_radius();
+        std::f64::consts::PI * r * r
+    }
+
+    /// Volume inside the membrane at the target height (m^3).
+    pub fn inner_volume(&self) -> f64 {
+        self.inner_area() * self.height
+    }
+
+    /// The nominal solid fraction asked for (0.65 when neither it nor `particles` is given).
+    pub fn requested_solid_fraction(&self) -> Option<f64> {
+        match (self.solid_fraction, self.particles) {
+            (Some(f), _) => Some(f),
+            (None, None) => Some(DEFAULT_SOLID_FRACTION),
+            (None, Some(_)) => None,
+        }
+    }
+
+    /// The axial loading velocity of the test (m/s): the given one, or the one at which
+    /// the inertial number `I = eps_rate d sqrt(rho / p)` is 1e-3 with `d` the largest
+    /// original (h = 1) diameter, `rho` the density and `p` the confining pressure:
+    /// `v = 1e-3 H / (d sqrt(rho / p))`. Coarse graining keeps the domain, loads and
+    /// velocity, so every variant of a test shares this velocity.
+    pub fn loading_velocity(&self) -> f64 {
+        self.loading_velocity.unwrap_or_else(|| {
+            let d = self.gradation.iter().map(|c| c.size).fold(0.0, f64::max);
+            let root = (self.material.density / self.confining_pressure).sqrt();
+            DEFAULT_INERTIAL_NUMBER * self.height / (d * root)
+        })
+    }
+
+    /// The parameters as simulated (sizes x h; with exact scaling, every material and
+    /// contact parameter times its factor from `ScaleLaw::exact(h)`; the contact margin,
+    /// a particle length, always x h).
+    pub fn simulated(&self) -> Result<Simulated, TriaxialError> {
+        let h = self.coarse_graining;
+        let law = ScaleLaw::exact(h).map_err(|e| self.rule("coarse_graining", e.to_string()))?;
+        let sizes = self
+            .gradation
+            .iter()
+            .map(|c| c.size * law.factor_of("length").unwrap_or(h))
+            .collect();
+        let mut material = self.material.clone();
+        let mut contact = self.contact.clone();
+        let mut preparation_friction = self.preparation.friction;
+        let mut scaled = Vec::new();
+        if let Some(margin) = contact.margin.as_mut() {
+            *margin *= law.factor_of("length").unwrap_or(h);
+        }
+        if self.exact_scaling {
+            let MaterialSection {
+                density,
+                youngs_modulus,
+                poisson_ratio,
+            } = &mut material;
+            let ContactSection {
+                enabled: _,
+                normal_penalty,
+                penalty_ratio,
+                friction,
+                damping,
+                damping_ratio,
+                margin: _,
+            } = &mut contact;
+            let fields: [(&str, &'static str, &mut f64); 9] = [
+                ("material.density", "density", density),
+                ("material.youngs_modulus", "youngs_modulus", youngs_modulus),
+                ("material.poisson_ratio", "poisson_ratio", poisson_ratio),
+                (
+                    "contact.normal_penalty",
+                    "penalty_stiffness",
+                    normal_penalty,
+                ),
+                ("contact.penalty_ratio", "ratio", penalty_ratio),
+                ("contact.friction", "friction", friction),
+                ("contact.damping", "damping", damping),
+                ("contact.damping_ratio", "ratio", damping_ratio),
+                (
+                    "preparation.friction",
+                    "friction",
+                    &mut preparation_friction,
+                ),
+            ];
+            for (key, quantity, value) in fields {
+                let factor = law.factor_of(quantity).ok_or_else(|| {
+                    self.rule(
+                        "exact_scaling",
+                        format!("internal error: quantity {quantity} is not catalogued"),
+                    )
+                })?;
+                if factor != 1.0 {
+                    *value *= factor;
+                    scaled.push((key.to_string(), quantity, factor));
+                }
+            }
+        }
+        Ok(Simulated {
+            sizes,
+            material,
+            contact,
+            preparation_friction,
+            scaled,
+        })
+    }
+
+    fn rule(&self, key: &str, message: String) -> TriaxialError {
+        TriaxialError::Definition {
+            origin: self.name.clone(),
+            line: 0,
+            column: 0,
+            key: key.to_string(),
+            message,
+        }
+    }
+
+    /// Checks every rule of the schema (single values and the rules across keys) before
+    /// any work; the first broken rule is returned as one line naming the key.
+    pub fn validate(&self, origin: &str) -> Result<(), TriaxialError> {
+        let fail = |key: &str, message: String| TriaxialError::Definition {
+            origin: origin.to_string(),
+            line: 0,
+            column: 0,
+            key: key.to_string(),
+            message,
+        };
+        let single = |key: &str, r: Result<f64, String>| r.map(|_| ()).map_err(|m| fail(key, m));
+        single("diameter", check_positive(self.diameter))?;
+        single("height", check_positive(self.height))?;
+        single(
+            "membrane_thickness",
+            check_non_negative(self.membrane_thickness),
+        )?;
+        single("coarse_graining", check_positive(self.coarse_graining))?;
+        single(
+            "confining_pressure",
+            check_positive(self.confining_pressure),
+        )?;
+        if let Some(v) = self.loading_velocity {
+            single("loading_velocity", check_positive(v))?;
+        }
+        let m = &self.material;
+        single("material.density", check_positive(m.density))?;
+        single("material.youngs_modulus", check_positive(m.youngs_modulus))?;
+        if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
+            return Err(fail(
+                "material.poisson_ratio",
+                format!("must lie in (-1, 0.5), got {}", m.poisson_ratio),
+            ));
+        }
+        let c = &self.contact;
+        single("contact.normal_penalty", check_positive(c.normal_penalty))?;
+        single("contact.penalty_ratio", check_positive(c.penalty_ratio))?;
+        single("contact.friction", check_non_negative(c.friction))?;
+        single("contact.damping", check_non_negative(c.damping))?;
+        single("contact.damping_ratio", check_non_negative(c.damping_ratio))?;
+        if let Some(margin) = c.margin {
+            single("contact.margin", check_positive(margin))?;
+        }
+        if !c.enabled {
+            return Err(fail(
+                "contact.enabled",
+                "a specimen needs contact; remove `enabled = false`".into(),
+            ));
+        }
+        if self.mesh.level > fdem_mesh::MAX_LEVEL {
+            return Err(fail(
+                "mesh.level",
+                format!(
+                    "subdivision level must be 0, 1, 2, 3 or 4, got {}",
+                    self.mesh.level
+                ),
+            ));
+        }
+        let p = &self.preparation;
+        single("preparation.platen_speed", check_positive(p.platen_speed))?;
+        single("preparation.friction", check_non_negative(p.friction))?;
+        single("preparation.dt_safety", check_fraction(p.dt_safety))?;
+        single("preparation.clearance", check_fraction(p.clearance))?;
+        single("preparation.max_overlap", check_fraction(p.max_overlap))?;
+        single(
+            "preparation.unbalanced_force",
+            check_fraction(p.unbalanced_force),
+        )?;
+        if let Some(t) = p.settle_time {
+            single("preparation.settle_time", check_positive(t))?;
+        }
+        if p.check_interval == 0 {
+            return Err(fail(
+                "preparation.check_interval",
+                "must be at least 1".into(),
+            ));
+        }
+        if !p.gravity.iter().all(|g| g.is_finite()) {
+            return Err(fail(
+                "preparation.gravity",
+                format!("every component must be finite, got {:?}", p.gravity),
+            ));
+        }
+        let loose = p.loose_solid_fraction;
+        if !(loose > 0.0 && loose <= 0.35) {
+            return Err(fail(
+                "preparation.loose_solid_fraction",
+                format!(
+                    "must lie in (0, 0.35] (random sequential placement jams near 0.38), got {loose}"
+                ),
+            ));
+        }
+
+        // Geometry.
+        let r = self.inner_radius();
+        if r <= 0.0 {
+            return Err(fail(
+                "membrane_thickness",
+                format!(
+                    "{} m leaves no room inside a specimen of diameter {} m; it must be less than the radius",
+                    self.membrane_thickness, self.diameter
+                ),
+            ));
+        }
+
+        // Gradation.
+        if self.gradation.is_empty() {
+            return Err(fail(
+                "gradation",
+                "no size classes; give at least one { size = ..., mass_fraction = ... }".into(),
+            ));
+        }
+        let h = self.coarse_graining;
+        for (i, class) in self.gradation.iter().enumerate() {
+            single(&format!("gradation[{i}].size"), check_positive(class.size))?;
+            single(
+                &format!("gradation[{i}].mass_fraction"),
+                check_fraction(class.mass_fraction),
+            )?;
+            let d = class.size * h;
+            let limit = (2.0 * r).min(self.height);
+            if d >= limit {
+                return Err(fail(
+                    &format!("gradation[{i}].size"),
+                    format!(
+                        "particles of {} m (x coarse_graining {h} = {d} m) are larger than the specimen \
+                         (inner diameter {} m, height {} m); use smaller sizes or a smaller coarse_graining",
+                        class.size,
+                        2.0 * r,
+                        self.height
+                    ),
+                ));
+            }
+            if self.gradation[..i].iter().any(|o| o.size == class.size) {
+                return Err(fail(
+                    &format!("gradation[{i}].size"),
+                    format!(
+                        "size {} m is listed twice; merge the two classes",
+                        class.size
+                    ),
+                ));
+            }
+        }
+        let sum: f64 = self.gradation.iter().map(|c| c.mass_fraction).sum();
+        if (sum - 1.0).abs() > FRACTION_SUM_TOLERANCE {
+            return Err(fail(
+                "gradation",
+                format!(
+                    "mass fractions sum to {}, not 1 (tolerance {FRACTION_SUM_TOLERANCE}); fix the mass_fraction values",
+                    (sum * 1e9).round() / 1e9
+                ),
+            ));
+        }
+
+        // Amount of solid.
+        match (self.solid_fraction, self.particles) {
+            (Some(_), Some(_)) => {
+                return Err(fail(
+                    "particles",
+                    "give either solid_fraction or particles, not both".into(),
+                ));
+            }
+            (Some(f), None) if f > DENSEST_PACKING => {
+                return Err(fail(
+                    "solid_fraction",
+                    format!(
+                        "{f} exceeds the densest packing of spheres ({DENSEST_PACKING:.4}); no arrangement reaches it"
+                    ),
+                ));
+            }
+            (None, Some(0)) => {
+                return Err(fail("particles", "must be at least 1".into()));
+            }
+            _ => {}
+        }
+        if let Some(f) = self.requested_solid_fraction() {
+            if f <= loose {
+                return Err(fail(
+                    "preparation.loose_solid_fraction",
+                    format!(
+                        "{loose} must be below the target solid fraction {f}, or there is nothing to compact"
+                    ),
+                ));
+            }
+        }
+        let counts = crate::counts::class_counts(self).map_err(|(key, m)| fail(&key, m))?;
+        let solids: f64 = counts
+            .iter()
+            .zip(&self.gradation)
+            .map(|(&n, c)| n as f64 * crate::counts::sphere_volume(c.size * h))
+            .sum();
+        let implied = solids / self.inner_volume();
+        if implied > DENSEST_PACKING {
+            let needed = solids / (DENSEST_PACKING * self.inner_area());
+            return Err(fail(
+                "height",
+                format!(
+                    "{} m is below the {needed:.4} m the solids need at the densest packing \
+                     ({DENSEST_PACKING:.4}); raise the height or lower the particle count",
+                    self.height
+                ),
+            ));
+        }
+        if implied <= loose {
+            return Err(fail(
+                "preparation.loose_solid_fraction",
+                format!(
+                    "{loose} must be below the specimen's solid fraction {implied:.4}, or there is nothing to compact"
+                ),
+            ));
+        }
+        self.simulated()
+            .map_err(|e| fail("coarse_graining", e.to_string()))?;
+        Ok(())
+    }
+}

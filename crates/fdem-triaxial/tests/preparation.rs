@@ -1,0 +1,366 @@
+//! Preparation by the dynamic method on small specimens, specimen files, and the restore
+//! of the friction history.
+//!
+//! The specimens are a few dozen level-0 linear particles of a soft material (E = 100 MPa,
+//! so that the stable step is long) in a phi 104 x 60 mm cylinder: about 5000 compaction
+//! steps, a second or two in the dev profile.
+
+use fdem_contact::Counterpart;
+use fdem_mesh::{SphereSpec, sphere_mesh};
+use fdem_triaxial::{
+    Observer, Phase, PreparedSpecimen, Silent, SpecimenSpec, Status, TriaxialError, WALL_BOTTOM,
+    WALL_CYLINDER, WALL_TOP, prepare, sphere_volume, unbalanced_force_ratio,
+};
+use std::sync::OnceLock;
+
+const SMALL: &str = r#"
+name = "small"
+diameter = 0.104
+height = 0.06
+solid_fraction = 0.5
+gradation = [{ size = 0.02, mass_fraction = 1.0 }]
+
+[material]
+density = 2650.0
+youngs_modulus = 1.0e8
+poisson_ratio = 0.2
+
+[contact]
+normal_penalty = 1.0e9
+
+[mesh]
+level = 0
+order = "linear"
+"#;
+
+/// The same specimen under gravity (50 m/s^2, to settle quickly) with friction during
+/// preparation: it ends as a pile on the bottom platen with sticking contacts, so the
+/// friction history is not trivial.
+fn gravity_text() -> String {
+    format!(
+        "{SMALL}\n[preparation]\nfriction = 0.3\ngravity = [0.0, 0.0, -50.0]\nsettle_time = 0.3\n"
+    )
+}
+
+fn small() -> &'static PreparedSpecimen {
+    static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let spec = SpecimenSpec::from_toml_str(SMALL, "small").unwrap();
+        prepare(&spec, &mut Silent).unwrap()
+    })
+}
+
+fn pile() -> &'static PreparedSpecimen {
+    static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let spec = SpecimenSpec::from_toml_str(&gravity_text(), "pile").unwrap();
+        prepare(&spec, &mut Silent).unwrap()
+    })
+}
+
+#[test]
+fn compaction_reaches_the_target_height_with_the_solid_fraction_it_implies() {
+    let s = small();
+    let r = &s.report;
+    let spec = &s.spec;
+    assert!(r.checks.passed(), "{:?}", r.checks);
+    assert_eq!(r.particles, 56);
+    // The platens closed by exactly the loose height minus the target.
+    let travel = r.platen_speed * r.dt * r.compact_steps as f64;
+    assert!((travel - (r.loose_height - spec.height)).abs() < 1e-12 * r.loose_height);
+    assert!(r.loose_height > 2.0 * spec.height);
+    // The walls of the prepared configuration: cylinder, platens at z = 0 and z = H.
+    let scene = s.scene().unwrap();
+    assert_eq!(scene.walls[WALL_CYLINDER].radius, Some(spec.inner_radius()));
+    assert_eq!(scene.walls[WALL_BOTTOM].point, Some([0.0, 0.0, 0.0]));
+    assert_eq!(scene.walls[WALL_TOP].point, Some([0.0, 0.0, spec.height]));
+    // Every node inside, within the stated overlap.
+    let tol = r.checks.overlap_limit;
+    let radius = spec.inner_radius();
+    for x in &s.state.positions {
+        assert!((x[0] * x[0] + x[1] * x[1]).sqrt() <= radius + tol);
+        assert!(x[2] >= -tol && x[2] <= spec.height + tol);
+    }
+    // Solid fraction: nominal from the count rule; real = nominal x (mesh volume / sphere
+    // volume) of the inscribed level-0 mesh, up to the particles' elastic deformation.
+    let nominal = 56.0 * sphere_volume(0.02) / spec.inner_volume();
+    assert!((r.solid_fraction_nominal - nominal).abs() < 1e-14);
+    let mesh = sphere_mesh(&SphereSpec {
+        level: 0,
+        order: fdem_mesh::ElementOrder::Linear,
+        diameter: 0.02,
+        sizing: fdem_mesh::Sizing::Inscribed,
+    })
+    .unwrap();
+    let ratio = mesh.volume() / sphere_volume(0.02);
+    assert!((ratio - 0.6055).abs() < 1e-4);
+    let expected = nominal * ratio;
+    assert!(
+        (r.solid_fraction_real - expected).abs() < 1e-4 * expected,
+        "{} vs {expected}",
+        r.solid_fraction_real
+    );
+    // At rest.
+    assert!(s.state.velocities.iter().all(|v| *v == [0.0; 3]));
+    assert!(r.settled);
+    assert!(r.wall_seconds > 0.0 && r.compact_steps > 1000);
+}
+
+#[test]
+fn a_pile_under_gravity_keeps_a_friction_history() {
+    let s = pile();
+    assert!(s.report.checks.passed(), "{:?}", s.report.checks);
+    assert!(
+        s.report.coordination_number > 2.0,
+        "{}",
+        s.report.coordination_number
+    );
+    let sticking = s
+        .state
+        .history
+        .iter()
+        .filter(|h| h.2 != [0.0; 3] && matches!(h.1, Counterpart::Body(_)))
+        .count();
+    assert!(
+        sticking > 20,
+        "{sticking} particle contacts with a tangential displacement"
+    );
+    assert!(
+        s.state
+            .history
+            .iter()
+            .any(|h| h.1 == Counterpart::Wall(WALL_BOTTOM as u32))
+    );
+}
+
+#[test]
+fn a_restored_specimen_reproduces_the_checked_state_exactly() {
+    for s in [small(), pile()] {
+        let sim = s.simulation().unwrap();
+        assert_eq!(sim.state.positions, s.state.positions);
+        assert_eq!(sim.state.velocities, s.state.velocities);
+        assert_eq!(sim.time, s.state.time);
+        assert_eq!(sim.step, s.state.step);
+        assert_eq!(sim.dt, s.dt);
+        // The checks were made on the state after the final restore in `prepare`; a
+        // fresh restore gives the same forces to the last bit.
+        let d = s.spec.simulated().unwrap().sizes[0];
+        let f_ref = s.spec.confining_pressure * d * d;
+        assert_eq!(
+            unbalanced_force_ratio(&sim, f_ref).to_bits(),
+            s.report.checks.unbalanced_force.to_bits()
+        );
+    }
+}
+
+fn bits(v: &[[f64; 3]]) -> Vec<[u64; 3]> {
+    v.iter().map(|x| x.map(f64::to_bits)).collect()
+}
+
+#[test]
+fn a_saved_specimen_reloads_bit_for_bit_and_steps_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    for (s, name) in [(small(), "small.fdemspec"), (pile(), "pile.fdemspec")] {
+        let path = dir.path().join(name);
+        s.save(&path).unwrap();
+        assert!(!dir.path().join(format!("{name}.part")).exists());
+        let loaded = PreparedSpecimen::load(&path).unwrap();
+        // Every field, floats compared exactly (PartialEq on f64 is bitwise here: no NaN).
+        assert_eq!(&loaded, s);
+        assert_eq!(bits(&loaded.state.positions), bits(&s.state.positions));
+        // The un-saved specimen and the reloaded one step to the same bits.
+        let mut a = s.simulation().unwrap();
+        let mut b = loaded.simulation().unwrap();
+        for _ in 0..50 {
+            a.advance().unwrap();
+            b.advance().unwrap();
+        }
+        assert_eq!(bits(&a.state.positions), bits(&b.state.positions));
+        assert_eq!(bits(&a.state.velocities), bits(&b.state.velocities));
+        let (ha, hb) = (
+            a.contact().unwrap().model.export_history(),
+            b.contact().unwrap().model.export_history(),
+        );
+        assert_eq!(ha, hb);
+        assert_eq!(
+            a.energy().balance_error.to_bits(),
+            b.energy().balance_error.to_bits()
+        );
+    }
+}
+
+fn refusal(bytes: &[u8]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.fdemspec");
+    std::fs::write(&path, bytes).unwrap();
+    match PreparedSpecimen::load(&path) {
+        Err(e) => {
+            let m = e.to_string();
+            assert!(!m.contains('\n'), "one line: {m}");
+            m
+        }
+        Ok(_) => panic!("a damaged file was accepted"),
+    }
+}
+
+#[test]
+fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("good.fdemspec");
+    small().save(&path).unwrap();
+    let good = std::fs::read(&path).unwrap();
+
+    let m = refusal(&good[..good.len() - 100]);
+    assert!(m.contains("truncated"), "{m}");
+    let m = refusal(&good[..good.len() / 2]);
+    assert!(m.contains("truncated"), "{m}");
+    let m = refusal(&good[..10]);
+    assert!(m.contains("truncated"), "{m}");
+
+    let mut flipped = good.clone();
+    let middle = good.len() - 5000;
+    flipped[middle] ^= 0x10;
+    assert!(refusal(&flipped).contains("checksum"));
+
+    // A changed digit in the TOML header.
+    let mut header = good.clone();
+    let at = good.windows(6).position(|w| w == b"height").unwrap() + 9;
+    header[at] = if header[at] == b'1' { b'2' } else { b'1' };
+    assert!(refusal(&header).contains("checksum"));
+
+    let mut version = good.clone();
+    version[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let m = refusal(&version);
+    assert!(
+        m.contains("format version 2") && m.contains("version 1"),
+        "{m}"
+    );
+
+    let mut longer = good.clone();
+    longer.extend_from_slice(b"tail");
+    assert!(refusal(&longer).contains("4 more"));
+
+    assert!(refusal(b"diameter = 0.3\n").contains("not an fdem specimen file"));
+}
+
+#[test]
+fn history_export_and_import_round_trip_and_refuse_foreign_entries() {
+    let s = pile();
+    let mut sim = s.simulation().unwrap();
+    let model = &mut sim.contact_mut().unwrap().model;
+    let exported = model.export_history();
+    assert!(!exported.is_empty());
+    model.import_history(&exported).unwrap();
+    assert_eq!(model.export_history(), exported);
+    let first = exported[0];
+    let n_nodes = s.state.positions.len();
+    let cases = [
+        vec![(n_nodes + 5, first.1, first.2)],
+        vec![(first.0, Counterpart::Wall(3), first.2)],
+        vec![(first.0, Counterpart::Body(999), first.2)],
+        vec![(first.0, first.1, [f64::NAN, 0.0, 0.0])],
+        vec![first, first],
+    ];
+    for bad in cases {
+        assert!(model.import_history(&bad).is_err(), "{bad:?}");
+        // Nothing changed.
+        assert_eq!(model.export_history(), exported);
+    }
+}
+
+#[test]
+fn an_observer_can_interrupt_and_sees_every_phase() {
+    struct Stop(Vec<Phase>);
+    impl Observer for Stop {
+        fn phase(&mut self, phase: Phase, _: u64) {
+            self.0.push(phase);
+        }
+        fn progress(&mut self, phase: Phase, status: &Status) -> bool {
+            !(phase == Phase::Compact && status.step >= 1000)
+        }
+    }
+    let spec = SpecimenSpec::from_toml_str(SMALL, "small").unwrap();
+    let mut stop = Stop(Vec::new());
+    let err = prepare(&spec, &mut stop).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            TriaxialError::Interrupted {
+                phase: "compact",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert_eq!(stop.0, [Phase::Place, Phase::Compact]);
+}
+
+fn example(name: &str) -> SpecimenSpec {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/specimens")
+        .join(name);
+    SpecimenSpec::load(&path).unwrap()
+}
+
+#[test]
+fn the_example_specimens_parse_and_small_is_the_test_specimen() {
+    assert_eq!(
+        example("small.toml"),
+        SpecimenSpec::from_toml_str(SMALL, "small").unwrap()
+    );
+    for name in ["dense.toml", "three-sizes.toml", "coarse.toml"] {
+        example(name).counts().unwrap();
+    }
+}
+
+/// The heavier check of docs/SPECIMENS.md: a jammed specimen of level-1 particles.
+#[test]
+#[ignore = "about 40 s with --release: cargo test --release -p fdem-triaxial -- --ignored"]
+fn a_dense_level_1_specimen_jams_settles_and_passes_its_checks() {
+    let spec = example("dense.toml");
+    let s = prepare(&spec, &mut Silent).unwrap();
+    let r = &s.report;
+    assert!(r.checks.passed(), "{:?}", r.checks);
+    assert!(r.settled);
+    // Jammed: a contact network spans the specimen (isostatic frictionless packings have
+    // about 6 contacts per particle away from walls; rattlers and walls lower the mean).
+    assert!(r.coordination_number > 2.5, "{}", r.coordination_number);
+    let mesh = sphere_mesh(&SphereSpec {
+        level: 1,
+        order: fdem_mesh::ElementOrder::Linear,
+        diameter: 0.02,
+        sizing: fdem_mesh::Sizing::Inscribed,
+    })
+    .unwrap();
+    let expected = r.solid_fraction_nominal * mesh.volume() / sphere_volume(0.02);
+    assert!((r.solid_fraction_real - expected).abs() < 1e-3 * expected);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("dense.fdemspec");
+    s.save(&path).unwrap();
+    assert_eq!(PreparedSpecimen::load(&path).unwrap(), s);
+}
+
+#[test]
+fn a_compaction_the_contact_law_refuses_stops_with_the_platen_gap() {
+    // A contact margin of 1 um: the first impacts move nodes farther than the tunnelling
+    // guard allows, as a jammed assembly pushes overlaps past the depth limit.
+    let text = SMALL.replace(
+        "normal_penalty = 1.0e9",
+        "normal_penalty = 1.0e9\nmargin = 1.0e-6",
+    );
+    let spec = SpecimenSpec::from_toml_str(&text, "tight").unwrap();
+    let err = prepare(&spec, &mut Silent).unwrap_err();
+    let message = err.to_string();
+    assert!(!message.contains('\n'), "{message}");
+    match err {
+        TriaxialError::Compaction { gap, target, .. } => {
+            assert_eq!(target, 0.06);
+            assert!(gap > target && gap < 0.14, "{gap}");
+        }
+        other => panic!("expected a compaction error, got {other}"),
+    }
+    assert!(
+        message.starts_with("compaction stopped at a platen gap of"),
+        "{message}"
+    );
+}
