@@ -28,6 +28,8 @@ enum Command {
     Coarsen(commands::coarsen::CoarsenArgs),
     /// Specimens of the triaxial test: counts, preparation by the dynamic method, saved files.
     Specimen(commands::specimen::SpecimenArgs),
+    /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
+    Micro(commands::micro::MicroArgs),
 }
 
 fn main() -> ExitCode {
@@ -54,6 +56,7 @@ fn main() -> ExitCode {
         Command::Scale(args) => commands::scale::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
         Command::Run(args) => commands::run::run(&args),
+        Command::Micro(args) => commands::micro::run(&args),
         Command::Coarsen(args) => commands::coarsen::run(&args),
         Command::Specimen(args) => commands::specimen::run(&args),
     };

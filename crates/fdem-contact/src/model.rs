@@ -830,10 +830,10 @@ impl Ctx<'_> {
                     }
                 }
                 let face = tri.map(|j| self.positions[j]);
-                if let Some(hit) = self.kernel.project(x, face, depth_limit) {
-                    if best.is_none_or(|(_, _, b)| hit.depth < b.depth) {
-                        best = Some((c.triangle as usize, tri, hit));
-                    }
+                if let Some(hit) = self.kernel.project(x, face, depth_limit)
+                    && best.is_none_or(|(_, _, b)| hit.depth < b.depth)
+                {
+                    best = Some((c.triangle as usize, tri, hit));
                 }
             }
             if let Some((t, tri, hit)) = best {

@@ -110,7 +110,7 @@ impl ElementSet {
     ) -> Result<Self, ElasticError> {
         material.validate()?;
         let kind = TetKind::from_nodes_per_element(nodes_per_element)?;
-        if connectivity.len() % nodes_per_element != 0 {
+        if !connectivity.len().is_multiple_of(nodes_per_element) {
             return Err(ElasticError::ConnectivityLength {
                 len: connectivity.len(),
                 nodes_per_element,

@@ -176,13 +176,13 @@ impl MeshAssembly {
     ) -> Result<usize, MeshError> {
         let map = placement.transform()?;
         template.validate()?;
-        if let Some(existing) = self.order {
-            if existing != template.order {
-                return Err(MeshError::MixedOrder {
-                    existing,
-                    requested: template.order,
-                });
-            }
+        if let Some(existing) = self.order
+            && existing != template.order
+        {
+            return Err(MeshError::MixedOrder {
+                existing,
+                requested: template.order,
+            });
         }
         let body = self.bodies.len();
         let body_u32 =

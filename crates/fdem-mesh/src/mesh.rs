@@ -119,7 +119,7 @@ impl TetMesh {
         let npe = self.order.nodes_per_element();
         let n = self.nodes.len();
         let bad = |reason: String| Err(MeshError::InvalidMesh { reason });
-        if self.elements.len() % npe != 0 {
+        if !self.elements.len().is_multiple_of(npe) {
             return bad(format!(
                 "the element array has {} entries, not a multiple of {npe} nodes per element",
                 self.elements.len()

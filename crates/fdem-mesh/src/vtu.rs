@@ -70,7 +70,7 @@ impl VtuFrame<'_> {
                 "nodes_per_cell is {npc}; use 4 (linear tetra), 10 (quadratic tetra) or 3 (triangle)"
             ));
         }
-        if self.cells.len() % npc != 0 {
+        if !self.cells.len().is_multiple_of(npc) {
             return bad(format!(
                 "the cell array has {} entries, which is not a multiple of nodes_per_cell = {npc}",
                 self.cells.len()

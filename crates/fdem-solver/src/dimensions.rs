@@ -365,13 +365,14 @@ mesh = { level = 1, order = "linear", sizing = "inscribed" }
                         continue; // integers and names only
                     }
                     // Arrays of tables are named like `particle[0]` in key paths.
-                    if let toml::Value::Array(items) = x {
-                        if items.iter().all(|i| i.is_table()) && !items.is_empty() {
-                            for (i, item) in items.iter().enumerate() {
-                                collect_floats(item, join(&path, &format!("{k}[{i}]")), out);
-                            }
-                            continue;
+                    if let toml::Value::Array(items) = x
+                        && items.iter().all(|i| i.is_table())
+                        && !items.is_empty()
+                    {
+                        for (i, item) in items.iter().enumerate() {
+                            collect_floats(item, join(&path, &format!("{k}[{i}]")), out);
                         }
+                        continue;
                     }
                     collect_floats(x, join(&path, k), out);
                 }

@@ -190,13 +190,13 @@ impl ForceContribution for ElasticForces {
         let mut best: Option<StepBound> = None;
         for b in &self.bodies {
             let steps = b.set.element_time_steps();
-            if let Some((e, &dt)) = steps.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)) {
-                if best.as_ref().is_none_or(|s| dt < s.dt) {
-                    best = Some(StepBound {
-                        dt,
-                        source: format!("elastic: body {}, element {e}", b.body),
-                    });
-                }
+            if let Some((e, &dt)) = steps.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))
+                && best.as_ref().is_none_or(|s| dt < s.dt)
+            {
+                best = Some(StepBound {
+                    dt,
+                    source: format!("elastic: body {}, element {e}", b.body),
+                });
             }
         }
         best

@@ -465,21 +465,21 @@ impl Scene {
             }
         }
         let s = &self.simulation;
-        if let Some(interval) = s.output_interval {
-            if interval > s.duration {
-                return Err(fail(
-                    "simulation.output_interval".into(),
-                    format!("{interval} s is longer than the duration {} s", s.duration),
-                ));
-            }
+        if let Some(interval) = s.output_interval
+            && interval > s.duration
+        {
+            return Err(fail(
+                "simulation.output_interval".into(),
+                format!("{interval} s is longer than the duration {} s", s.duration),
+            ));
         }
-        if let Some(dt) = s.dt {
-            if dt > s.duration {
-                return Err(fail(
-                    "simulation.dt".into(),
-                    format!("{dt} s is longer than the duration {} s", s.duration),
-                ));
-            }
+        if let Some(dt) = s.dt
+            && dt > s.duration
+        {
+            return Err(fail(
+                "simulation.dt".into(),
+                format!("{dt} s is longer than the duration {} s", s.duration),
+            ));
         }
         Ok(())
     }

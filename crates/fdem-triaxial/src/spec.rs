@@ -769,15 +769,15 @@ impl SpecimenSpec {
             }
             _ => {}
         }
-        if let Some(f) = self.requested_solid_fraction() {
-            if f <= loose {
-                return Err(fail(
-                    "preparation.loose_solid_fraction",
-                    format!(
-                        "{loose} must be below the target solid fraction {f}, or there is nothing to compact"
-                    ),
-                ));
-            }
+        if let Some(f) = self.requested_solid_fraction()
+            && f <= loose
+        {
+            return Err(fail(
+                "preparation.loose_solid_fraction",
+                format!(
+                    "{loose} must be below the target solid fraction {f}, or there is nothing to compact"
+                ),
+            ));
         }
         let counts = crate::counts::class_counts(self).map_err(|(key, m)| fail(&key, m))?;
         let solids: f64 = counts

@@ -2,6 +2,7 @@
 
 pub mod coarsen;
 pub mod mesh;
+pub mod micro;
 pub mod run;
 pub mod scale;
 pub mod specimen;
