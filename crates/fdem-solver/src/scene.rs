@@ -7,6 +7,7 @@
 
 use crate::engine::{Simulation, TimeStep};
 use crate::forces::ElasticForces;
+use crate::toml_input::{level, vector};
 use crate::{Body, NodeState, SolverError};
 use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
@@ -335,28 +336,6 @@ fn poisson<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     } else {
         Err(D::Error::custom(format!(
             "Poisson's ratio must lie in (-1, 0.5), got {v}"
-        )))
-    }
-}
-
-fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    let v = i64::deserialize(d)?;
-    if (0..=4).contains(&v) {
-        Ok(v as u32)
-    } else {
-        Err(D::Error::custom(format!(
-            "subdivision level must be 0, 1, 2, 3 or 4, got {v}"
-        )))
-    }
-}
-
-fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
-    let v = <[f64; 3]>::deserialize(d)?;
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "every component must be finite, got {v:?}"
         )))
     }
 }

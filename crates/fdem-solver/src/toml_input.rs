@@ -4,7 +4,8 @@
 //! range checks live in `deserialize_with` functions, so a bad value is reported where it
 //! is, as `file:line:column: key.path: what is wrong and how to fix it`.
 
-use serde::de::DeserializeOwned;
+use serde::de::{DeserializeOwned, Error as _};
+use serde::{Deserialize, Deserializer};
 use std::fmt;
 
 /// A TOML file that does not parse or does not fit its schema.
@@ -62,4 +63,28 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, origin: &str) -> Result<T, In
         let inner = e.into_inner();
         error(inner.span(), key, inner.message().to_string())
     })
+}
+
+/// `deserialize_with` for a mesh subdivision level: an integer in 0..=4.
+pub fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = i64::deserialize(d)?;
+    if (0..=i64::from(fdem_mesh::MAX_LEVEL)).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(D::Error::custom(format!(
+            "subdivision level must be 0, 1, 2, 3 or 4, got {v}"
+        )))
+    }
+}
+
+/// `deserialize_with` for a 3-vector whose components are all finite.
+pub fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    let v = <[f64; 3]>::deserialize(d)?;
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(D::Error::custom(format!(
+            "every component must be finite, got {v:?}"
+        )))
+    }
 }

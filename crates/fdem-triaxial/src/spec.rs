@@ -5,6 +5,7 @@
 use crate::TriaxialError;
 use fdem_mesh::{ElementOrder, Sizing};
 use fdem_scaling::ScaleLaw;
+use fdem_solver::toml_input::{level, vector};
 use fdem_solver::{ContactSection, MaterialSection};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 
@@ -395,28 +396,6 @@ fn at_least_one<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
         Ok(v)
     } else {
         Err(D::Error::custom("must be at least 1"))
-    }
-}
-
-fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    let v = i64::deserialize(d)?;
-    if (0..=i64::from(fdem_mesh::MAX_LEVEL)).contains(&v) {
-        Ok(v as u32)
-    } else {
-        Err(D::Error::custom(format!(
-            "subdivision level must be 0, 1, 2, 3 or 4, got {v}"
-        )))
-    }
-}
-
-fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
-    let v = <[f64; 3]>::deserialize(d)?;
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "every component must be finite, got {v:?}"
-        )))
     }
 }
 
