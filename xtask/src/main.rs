@@ -1,22 +1,26 @@
 //! The project's task runner: `cargo xtask <task>`.
 //!
 //! Tasks are whole jobs built from the library crates (the CLI's job is single commands).
-//! `triaxial` is the main job; until the triaxial test exists (issue 7) it runs the
-//! preflight that the test will start from: the exact-scaling factors of every series of
-//! the source paper and the statistics of its particle meshes. It prints nothing it did not
-//! compute.
+//! `triaxial` is the main job: the numerical triaxial test of the paper's E4s specimen
+//! (phi 300 x 600 mm, 237 particles of 60 mm, exact scaling, sigma_0 = 0.8 MPa) with
+//! level-1 linear meshes to 15 % axial strain, written to `out/triaxial/`. It builds the
+//! `fdem` binary in release mode and runs `fdem triaxial` (docs/TRIAXIAL.md), so that the
+//! job and the command line are one code path. `preflight` prints the exact-scaling
+//! factors and mesh statistics of every series of the paper; `docs` regenerates the
+//! generated parts of docs/.
 
 use anyhow::{Context, bail};
 use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
 use fdem_scaling::ScaleLaw;
 use std::process::ExitCode;
 
-const USAGE: &str = "usage: cargo xtask <task>\n\ntasks:\n  triaxial   the main job (currently: the preflight of the paper's test series)\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
+const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --order linear|quadratic, --level N, --strain S,\n             --vtk, --threads N, --fresh, --out DIR, --config FILE)\n  preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("triaxial") => triaxial(&args[1..]),
+        Some("preflight") => preflight(&args[1..]),
         Some("docs") => docs(),
         Some("-h" | "--help") | None => {
             println!("{USAGE}");
@@ -81,15 +85,52 @@ const SERIES: &[Series] = &[
 /// Paper Table 3: normal penalty p_n in N/m^3.
 const NORMAL_PENALTY: f64 = 1.8e11;
 
+/// The workspace root (xtask lives one level below it).
+fn workspace_root() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(std::path::Path::to_path_buf)
+        .unwrap_or_else(|| std::path::PathBuf::from("."))
+}
+
+/// The main job: `fdem triaxial` in release mode with the default scene filled in.
 fn triaxial(rest: &[String]) -> anyhow::Result<()> {
-    if let Some(extra) = rest.first() {
-        bail!("`cargo xtask triaxial` takes no arguments yet, got '{extra}'");
+    let given = |flag: &str| rest.iter().any(|a| a == flag);
+    let quick = given("--quick");
+    let chooses_specimen = quick || given("--test") || given("--config") || given("--specimen");
+    let has_order = given("--order");
+    let has_out = given("--out");
+    let mut args: Vec<String> = rest.to_vec();
+    if !chooses_specimen {
+        args.extend(["--test", "E4s"].map(String::from));
+        if !has_order {
+            args.extend(["--order", "linear"].map(String::from));
+        }
     }
-    println!("fdem main job: triaxial test");
-    println!(
-        "The triaxial loading is not implemented yet (issues 3-7). This run prints the\n\
-         preflight it will start from, all computed now by fdem-scaling and fdem-mesh.\n"
-    );
+    if !has_out {
+        let dir = if quick { "out/quick" } else { "out/triaxial" };
+        args.extend(["--out".to_string(), dir.to_string()]);
+    }
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    eprintln!("building fdem (release) and running: fdem triaxial {}", args.join(" "));
+    let status = std::process::Command::new(cargo)
+        .current_dir(workspace_root())
+        .args(["run", "--release", "--locked", "--quiet", "-p", "fdem-cli", "--bin", "fdem", "--"])
+        .arg("triaxial")
+        .args(&args)
+        .status()
+        .context("starting cargo")?;
+    if !status.success() {
+        bail!("fdem triaxial failed ({status})");
+    }
+    Ok(())
+}
+
+/// The computed preflight of the paper's series: scale factors and particle meshes.
+fn preflight(rest: &[String]) -> anyhow::Result<()> {
+    if let Some(extra) = rest.first() {
+        bail!("`cargo xtask preflight` takes no arguments, got '{extra}'");
+    }
     println!(
         "Coarse-graining series of the source paper (Table 4), particle meshes level 1, 10-node:"
     );

@@ -28,6 +28,8 @@ enum Command {
     Coarsen(commands::coarsen::CoarsenArgs),
     /// Specimens of the triaxial test: counts, preparation by the dynamic method, saved files.
     Specimen(commands::specimen::SpecimenArgs),
+    /// The triaxial test end to end: prepare (or reuse) a specimen, consolidate, shear, write curve.csv, summary.json, plots and peak contacts.
+    Triaxial(commands::triaxial::TriaxialArgs),
     /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
     Micro(commands::micro::MicroArgs),
 }
@@ -59,6 +61,7 @@ fn main() -> ExitCode {
         Command::Micro(args) => commands::micro::run(&args),
         Command::Coarsen(args) => commands::coarsen::run(&args),
         Command::Specimen(args) => commands::specimen::run(&args),
+        Command::Triaxial(args) => commands::triaxial::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -140,6 +140,9 @@ pub struct ContactReport {
     pub rebuilt: bool,
     /// Candidate (surface node, triangle) pairs of the current broad phase.
     pub candidate_pairs: usize,
+    /// Node-to-sheet hits deeper than the tunnelling threshold that were discarded as fold
+    /// artefacts (see [`ContactModel::set_sheet_bodies`]).
+    pub discarded_sheet_hits: usize,
 }
 
 /// The smallest contact stable time step over the surface nodes (MODEL.md section 11).
@@ -172,6 +175,7 @@ impl fmt::Display for StableStep {
 
 #[derive(Clone, Copy, Debug, Default)]
 struct Sums {
+    discarded: usize,
     stored: f64,
     normal_damping: f64,
     tangential_damping: f64,
@@ -218,6 +222,11 @@ impl Scan {
     }
 }
 
+/// Body flag: nodes that no face of the body covers are tested against its edges.
+const EDGE_TEST: u8 = 1;
+/// Body flag: the body is a sheet; too-deep hits on it are discarded as fold artefacts.
+const SHEET: u8 = 2;
+
 /// Penalty node-to-face contact between deformable bodies and rigid walls.
 ///
 /// Create it once with the surface, the masses and a margin, then call
@@ -241,6 +250,8 @@ pub struct ContactModel {
     wall_shapes: Vec<WallShape>,
     wall_forces: Vec<[f64; 3]>,
     report: ContactReport,
+    /// Per body: [`EDGE_TEST`] and [`SHEET`] flags (`set_sheet_bodies`).
+    sheets: Vec<u8>,
 }
 
 impl ContactModel {
@@ -331,6 +342,7 @@ impl ContactModel {
             report: ContactReport::default(),
             walls,
             surface,
+            sheets: Vec::new(),
         })
     }
 
@@ -357,6 +369,81 @@ impl ContactModel {
     /// The walls, with unit normals and axes.
     pub fn walls(&self) -> &[Wall] {
         &self.walls
+    }
+
+    /// Declares bodies as sheets (thin open surfaces such as a membrane). A node that no
+    /// face of a sheet covers is also tested against the sheet's edges and vertices
+    /// ([`crate::narrow::project_to_edge`]), which closes the holes node-to-face contact
+    /// has at the sheet's convex ridges; the closest-face rule keeps nodes that a nearer
+    /// face has in front out of contact. A node found behind a sheet deeper than the
+    /// tunnelling threshold (half the margin) is not an error but a fold artefact of a
+    /// sheet draped over angular particles: the hit is discarded and counted in
+    /// [`ContactReport::discarded_sheet_hits`] (the caller checks containment by other
+    /// means, as the triaxial test does every output).
+    pub fn set_sheet_bodies(&mut self, bodies: &[u32]) {
+        self.flag_bodies(bodies, EDGE_TEST | SHEET);
+    }
+
+    fn flag_bodies(&mut self, bodies: &[u32], flag: u8) {
+        let n = bodies.iter().map(|&b| b as usize + 1).max().unwrap_or(0);
+        if self.sheets.len() < n {
+            self.sheets.resize(n, 0);
+        }
+        for &b in bodies {
+            self.sheets[b as usize] |= flag;
+        }
+    }
+
+    /// Changes the velocity of wall `index` from `time` on, keeping its position at `time`
+    /// continuous: the wall's time-0 shape is shifted so that
+    /// `shape_at(time)` is unchanged and `shape_at(t) = shape_at(time) + velocity (t - time)`.
+    /// This is how a servo-controlled platen is driven; the wall power of the following
+    /// evaluations uses the new velocity.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidWall`] for an index out of range or a non-finite velocity or
+    /// time.
+    pub fn set_wall_velocity(
+        &mut self,
+        index: usize,
+        velocity: [f64; 3],
+        time: f64,
+    ) -> Result<(), ContactError> {
+        let n = self.walls.len();
+        let wall = self
+            .walls
+            .get_mut(index)
+            .ok_or_else(|| ContactError::InvalidWall {
+                wall: index,
+                reason: format!("there are {n} walls; use an index below {n}"),
+            })?;
+        if !(is_finite(velocity) && time.is_finite()) {
+            return Err(ContactError::InvalidWall {
+                wall: index,
+                reason: format!(
+                    "velocity {velocity:?} m/s at time {time} s is not finite; give finite numbers"
+                ),
+            });
+        }
+        let now = wall.shape_at(time);
+        let back = scale(velocity, -time);
+        wall.shape = match now {
+            WallShape::Plane { point, normal } => WallShape::Plane {
+                point: add(point, back),
+                normal,
+            },
+            WallShape::Cylinder {
+                axis_point,
+                axis,
+                radius,
+            } => WallShape::Cylinder {
+                axis_point: add(axis_point, back),
+                axis,
+                radius,
+            },
+        };
+        wall.velocity = velocity;
+        Ok(())
     }
 
     /// The Verlet-skin margin (m).
@@ -665,6 +752,7 @@ impl ContactModel {
             margin,
             check_faces,
             check_walls,
+            sheets: &self.sheets,
         };
         self.chunks
             .par_iter_mut()
@@ -714,6 +802,7 @@ impl ContactModel {
             report.tangential_damping_power += s.tangential_damping;
             report.friction_dissipation += s.friction;
             report.max_depth = report.max_depth.max(s.max_depth);
+            report.discarded_sheet_hits += s.discarded;
         }
         report.contacts = self.contacts.len();
         // The wall exerts -(force on the wall) on the particles; its power is v_wall . that.
@@ -748,6 +837,7 @@ struct Ctx<'a> {
     margin: f64,
     check_faces: bool,
     check_walls: bool,
+    sheets: &'a [u8],
 }
 
 impl Ctx<'_> {
@@ -812,6 +902,7 @@ impl Ctx<'_> {
         while i < cands.len() {
             let other = cands[i].body;
             let mut best: Option<(usize, [usize; 3], crate::FaceHit)> = None;
+            let group = i;
             while i < cands.len() && cands[i].body == other {
                 let c = cands[i];
                 i += 1;
@@ -836,6 +927,52 @@ impl Ctx<'_> {
                     best = Some((c.triangle as usize, tri, hit));
                 }
             }
+            // A sheet that no face covers the node with: its edges and vertices.
+            // It counts only where the node is behind the planes of all the sheet's nearby
+            // faces (a ridge folded over it), not in front of any of them within the
+            // edge distance.
+            let flags = self.sheets.get(other as usize).copied().unwrap_or(0);
+            let is_sheet = flags & SHEET != 0;
+            if best.is_none() && flags & EDGE_TEST != 0 {
+                let mut edge: Option<(usize, [usize; 3], crate::FaceHit)> = None;
+                for c in &cands[group..i] {
+                    let tri = c.nodes.map(|j| j as usize);
+                    let face = tri.map(|j| self.positions[j]);
+                    if let Some(hit) = crate::narrow::project_to_edge(x, face, depth_limit)
+                        && edge.is_none_or(|(_, _, b)| hit.depth < b.depth)
+                    {
+                        edge = Some((c.triangle as usize, tri, hit));
+                    }
+                }
+                best = edge.filter(|(_, _, hit)| {
+                    !cands[group..i].iter().any(|c| {
+                        let [a, b, cc] = c.nodes.map(|j| self.positions[j as usize]);
+                        let n = crate::vec3::cross(sub(b, a), sub(cc, a));
+                        let len = norm(n);
+                        len > 0.0 && {
+                            let s = crate::vec3::dot(sub(x, a), n) / len;
+                            (0.0..=hit.depth).contains(&s)
+                        }
+                    })
+                });
+            }
+            // Closest face wins: a face of the same body that covers the node from the
+            // front, nearer than the deepest-behind hit, means the node is outside there.
+            let best = best.filter(|(_, _, hit)| {
+                !cands[group..i].iter().any(|c| {
+                    let face = c.nodes.map(|j| self.positions[j as usize]);
+                    crate::narrow::front_distance(x, face, hit.depth).is_some()
+                })
+            });
+            // A sheet hit deeper than the tunnelling threshold is a fold artefact (the
+            // sheet moves slowly and has the edge test): discard it, count it.
+            let best = match best {
+                Some((_, _, hit)) if hit.depth > TUNNELLING_FRACTION * depth_limit && is_sheet => {
+                    scratch.sums.discarded += 1;
+                    None
+                }
+                other => other,
+            };
             if let Some((t, tri, hit)) = best {
                 let counterpart = Counterpart::Body(other);
                 if hit.depth > TUNNELLING_FRACTION * depth_limit {

@@ -621,3 +621,35 @@ fn set_up_and_input_errors_say_what_and_where() {
         "{msg}"
     );
 }
+
+/// A servo changes a platen's velocity mid-run: the position stays continuous and moves
+/// with the new velocity afterwards; bad indices and velocities are refused.
+#[test]
+fn wall_velocity_changes_keep_the_position_continuous() {
+    let assembly = {
+        let mut a = MeshAssembly::new();
+        a.push_instance(&linear_sphere(1, 0.01), &Placement::default())
+            .unwrap();
+        a
+    };
+    let top = Wall::plane([0.0, 0.0, 0.02], [0.0, 0.0, -1.0]).moving([0.0, 0.0, -0.5]);
+    let mut model = model_for(&assembly, ContactParams::default(), vec![top], 1e-4, None);
+    let z = |m: &ContactModel, t: f64| match m.walls()[0].shape_at(t) {
+        fdem_contact::WallShape::Plane { point, .. } => point[2],
+        _ => unreachable!(),
+    };
+    let before = z(&model, 0.01);
+    assert!((before - (0.02 - 0.005)).abs() < 1e-15);
+    model.set_wall_velocity(0, [0.0, 0.0, 0.25], 0.01).unwrap();
+    assert!((z(&model, 0.01) - before).abs() < 1e-15);
+    assert!((z(&model, 0.03) - (before + 0.25 * 0.02)).abs() < 1e-15);
+    assert!(matches!(
+        model.set_wall_velocity(1, [0.0; 3], 0.0),
+        Err(ContactError::InvalidWall { wall: 1, .. })
+    ));
+    assert!(
+        model
+            .set_wall_velocity(0, [f64::NAN, 0.0, 0.0], 0.0)
+            .is_err()
+    );
+}

@@ -36,6 +36,6 @@ pub use forces::{BodyElements, ElasticForces, ForceContribution, NodeView, Power
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
     ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
-    MeshSection, ParticleSection, Scene, SimulationSection, WallSection, WallType,
+    MeshSection, ParticleSection, Scene, SceneParts, SimulationSection, WallSection, WallType,
 };
 pub use state::NodeState;

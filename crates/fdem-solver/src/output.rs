@@ -202,20 +202,40 @@ fn counterpart_columns(c: fdem_contact::Counterpart) -> (String, String) {
     }
 }
 
-/// Writes the node-level and pair-level contact snapshot of output number `index` into
-/// `dir/contacts/` (each file atomically).
-pub fn contact_snapshot(sim: &Simulation, dir: &Path, index: usize) -> Result<(), SolverError> {
-    let Some(contact) = sim.contact() else {
-        return Ok(());
-    };
-    let folder = dir.join("contacts");
-    std::fs::create_dir_all(&folder)
-        .map_err(|e| SolverError::io("creating directory", &folder, e))?;
+/// A body of the contact surface that is a boundary, not a particle (a membrane): its
+/// contacts are reported as contacts with wall `as_wall`, and its own nodes' rows are left
+/// out (the particle side of each contact is kept).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoundaryBody {
+    /// Body id in the contact surface.
+    pub body: u32,
+    /// Wall index reported for it.
+    pub as_wall: u32,
+}
+
+/// The node-level and pair-level contact snapshot of `sim` as CSV text
+/// (`NODE_CONTACTS_HEADER` and `PAIR_CONTACTS_HEADER` rows, docs/MICRO.md), or `None`
+/// without a contact model.
+pub fn contact_snapshot_text(
+    sim: &Simulation,
+    boundary: Option<BoundaryBody>,
+) -> Option<(String, String)> {
+    let contact = sim.contact()?;
     let t = sim.time;
+    let remap = |c: fdem_contact::Counterpart| match (c, boundary) {
+        (fdem_contact::Counterpart::Body(b), Some(bb)) if b == bb.body => {
+            fdem_contact::Counterpart::Wall(bb.as_wall)
+        }
+        _ => c,
+    };
+    let is_boundary = |b: u32| boundary.is_some_and(|bb| bb.body == b);
     let mut nodes = String::from(NODE_CONTACTS_HEADER);
     nodes.push('\n');
     for c in contact.model.node_contacts() {
-        let (body, wall) = counterpart_columns(c.counterpart);
+        if is_boundary(c.body) {
+            continue;
+        }
+        let (body, wall) = counterpart_columns(remap(c.counterpart));
         let (p, n, s) = (c.position, c.normal_force, c.tangential_force);
         nodes.push_str(&format!(
             "{t:e},{},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
@@ -234,16 +254,31 @@ pub fn contact_snapshot(sim: &Simulation, dir: &Path, index: usize) -> Result<()
             u8::from(c.sliding)
         ));
     }
-    write_atomically(&folder.join(format!("nodes_{index:06}.csv")), &nodes)?;
     let mut pairs = String::from(PAIR_CONTACTS_HEADER);
     pairs.push('\n');
     for p in contact.model.pair_sums() {
-        let (body, wall) = counterpart_columns(p.counterpart);
+        if is_boundary(p.body) {
+            continue;
+        }
+        let (body, wall) = counterpart_columns(remap(p.counterpart));
         let (n, s) = (p.normal_force, p.tangential_force);
         pairs.push_str(&format!(
             "{t:e},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
             p.body, n[0], n[1], n[2], s[0], s[1], s[2], p.nodes
         ));
     }
+    Some((nodes, pairs))
+}
+
+/// Writes the node-level and pair-level contact snapshot of output number `index` into
+/// `dir/contacts/` (each file atomically).
+pub fn contact_snapshot(sim: &Simulation, dir: &Path, index: usize) -> Result<(), SolverError> {
+    let Some((nodes, pairs)) = contact_snapshot_text(sim, None) else {
+        return Ok(());
+    };
+    let folder = dir.join("contacts");
+    std::fs::create_dir_all(&folder)
+        .map_err(|e| SolverError::io("creating directory", &folder, e))?;
+    write_atomically(&folder.join(format!("nodes_{index:06}.csv")), &nodes)?;
     write_atomically(&folder.join(format!("pairs_{index:06}.csv")), &pairs)
 }

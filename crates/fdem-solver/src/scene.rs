@@ -486,25 +486,21 @@ impl Scene {
     }
 
     /// The contact contribution of the scene (none when `[contact] enabled = false`).
-    fn contact_forces(
-        &self,
-        assembly: &MeshAssembly,
-        masses: &[f64],
-    ) -> Result<Vec<Box<dyn crate::ForceContribution>>, SolverError> {
+    /// The contact law of the scene's `[contact]` section (defaults of Table 3 filled in).
+    pub fn contact_params(&self) -> fdem_contact::ContactParams {
         let c = self.contact_section();
-        // A lone particle with no wall has nothing to touch: model no contact.
-        if !c.enabled || (self.particles.len() < 2 && self.walls.is_empty()) {
-            return Ok(Vec::new());
-        }
-        let params = fdem_contact::ContactParams {
+        fdem_contact::ContactParams {
             normal_penalty: c.normal_penalty,
             penalty_ratio: c.penalty_ratio,
             friction: c.friction,
             damping: c.damping,
             damping_ratio: c.damping_ratio,
-        };
-        let walls = self
-            .walls
+        }
+    }
+
+    /// The scene's `[[wall]]` tables as contact walls.
+    pub fn contact_walls(&self) -> Vec<fdem_contact::Wall> {
+        self.walls
             .iter()
             .map(|w| {
                 let wall = match w.kind {
@@ -520,23 +516,55 @@ impl Scene {
                 };
                 wall.moving(w.velocity.unwrap_or([0.0; 3]))
             })
-            .collect();
-        let surface = fdem_contact::ContactSurface::from_assembly(assembly)?;
-        let margin = match c.margin {
-            Some(m) => m,
+            .collect()
+    }
+
+    /// The contact margin: `[contact] margin` if given, else
+    /// [`DEFAULT_MARGIN_FRACTION`] times the shortest edge of `surface` at `positions`.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidScene`] when the margin is implicit and there is no edge.
+    pub fn contact_margin(
+        &self,
+        surface: &fdem_contact::ContactSurface,
+        positions: &[[f64; 3]],
+    ) -> Result<f64, SolverError> {
+        match self.contact_section().margin {
+            Some(m) => Ok(m),
             None => surface
-                .shortest_edge(&assembly.nodes)
+                .shortest_edge(positions)
                 .map(|e| DEFAULT_MARGIN_FRACTION * e)
-                .ok_or_else(|| {
-                    SolverError::InvalidScene("the scene has no surface edges".into())
-                })?,
-        };
-        let model = fdem_contact::ContactModel::new(params, surface, walls, masses, margin)?;
+                .ok_or_else(|| SolverError::InvalidScene("the scene has no surface edges".into())),
+        }
+    }
+
+    fn contact_forces(
+        &self,
+        assembly: &MeshAssembly,
+        masses: &[f64],
+    ) -> Result<Vec<Box<dyn crate::ForceContribution>>, SolverError> {
+        let c = self.contact_section();
+        // A lone particle with no wall has nothing to touch: model no contact.
+        if !c.enabled || (self.particles.len() < 2 && self.walls.is_empty()) {
+            return Ok(Vec::new());
+        }
+        let surface = fdem_contact::ContactSurface::from_assembly(assembly)?;
+        let margin = self.contact_margin(&surface, &assembly.nodes)?;
+        let model = fdem_contact::ContactModel::new(
+            self.contact_params(),
+            surface,
+            self.contact_walls(),
+            masses,
+            margin,
+        )?;
         Ok(vec![Box::new(crate::ContactForces::new(model))])
     }
 
-    /// Builds the meshes, masses and initial state and returns a ready simulation.
-    pub fn build(&self) -> Result<Simulation, SolverError> {
+    /// Builds the meshes, the elastic element sets, the masses and the initial state of
+    /// the particles: everything of a simulation but the force contributions. A caller
+    /// that adds nodes of its own (a membrane) assembles its simulation from these parts;
+    /// [`Scene::build`] is the usual way.
+    pub fn assemble(&self) -> Result<SceneParts, SolverError> {
         let m = &self.material;
         let material = fdem_elastic::Material::new(m.density, m.youngs_modulus, m.poisson_ratio)
             .map_err(|source| SolverError::Elastic { body: 0, source })?;
@@ -591,6 +619,23 @@ impl Scene {
                 state.velocities[i] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
             }
         }
+        Ok(SceneParts {
+            assembly,
+            bodies,
+            elastic,
+            state,
+        })
+    }
+
+    /// Builds the meshes, masses and initial state and returns a ready simulation.
+    pub fn build(&self) -> Result<Simulation, SolverError> {
+        let SceneParts {
+            assembly,
+            bodies,
+            elastic,
+            state,
+        } = self.assemble()?;
+        let npe = assembly.nodes_per_element();
         let contributions = self.contact_forces(&assembly, &state.masses)?;
         let mut sim = Simulation::new(
             state,
@@ -607,4 +652,18 @@ impl Scene {
         }
         Ok(sim)
     }
+}
+
+/// The particles of a scene, assembled but without force contributions
+/// ([`Scene::assemble`]).
+#[derive(Debug)]
+pub struct SceneParts {
+    /// Meshes of all particles as placed (nodes, elements, surface, body ranges).
+    pub assembly: MeshAssembly,
+    /// Node and element ranges per particle.
+    pub bodies: Vec<Body>,
+    /// The particles' element sets.
+    pub elastic: ElasticForces,
+    /// Reference positions, masses and initial velocities of the particles' nodes.
+    pub state: NodeState,
 }

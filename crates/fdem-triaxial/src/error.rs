@@ -96,6 +96,16 @@ pub enum TriaxialError {
         /// The underlying error.
         cause: std::io::Error,
     },
+    /// The triaxial test could not be set up or stopped: a refused membrane, a step the
+    /// membrane or contact bound does not allow, a particle that escaped, a consolidation
+    /// that did not reach equilibrium in time, or a solver error during a phase.
+    #[error("triaxial test, phase `{phase}`: {message}")]
+    Test {
+        /// The phase (`set-up`, `consolidation`, `shear`, `output`).
+        phase: &'static str,
+        /// What happened and how to fix it.
+        message: String,
+    },
     /// The preparation was interrupted by the caller (its observer asked to stop).
     #[error("preparation interrupted in phase `{phase}` at step {step}")]
     Interrupted {

@@ -1,9 +1,9 @@
-//! # fdem-triaxial: specimens of the numerical triaxial test
+//! # fdem-triaxial: the numerical triaxial test
 //!
-//! This crate owns the first half of the source paper's triaxial test (MODEL.md sections
-//! 5-8): what a specimen is, how many particles it holds, and how it is prepared, saved
-//! and reused. The second half (membrane, consolidation, shear, measurements) will live
-//! here too.
+//! This crate owns the source paper's triaxial test (MODEL.md sections 5-8): what a
+//! specimen is, how many particles it holds, how it is prepared, saved and reused, and the
+//! test itself: membrane, platens, consolidation, shear, the measurements of eqs 12-15 and
+//! the outputs (docs/SPECIMENS.md, docs/TRIAXIAL.md).
 //!
 //! # What it owns
 //! - **Definitions** ([`SpecimenSpec`]): geometry, membrane, gradation (sizes with mass
@@ -25,6 +25,14 @@
 //! - **Specimen files** ([`PreparedSpecimen::save`], [`PreparedSpecimen::load`]): a
 //!   versioned, checksummed binary format with a TOML header; a reload is bit-for-bit.
 //!
+//! - **The membrane** ([`MembraneForces`], [`membrane_mesh`]): constant-strain St
+//!   Venant-Kirchhoff triangles with a follower pressure, the enclosed volume and
+//!   containment of the closed surface with the platens.
+//! - **The test** ([`run_test`], [`TestModel`]): servo-controlled consolidation under the
+//!   confining pressure, shear at constant platen velocity, `curve.csv`, `summary.json`,
+//!   peak contact snapshots, `eta.svg` and `eps_v.svg` ([`CurvePoint`], [`summarize`],
+//!   [`plot_curves`]); the quick specimen [`quick_spec`].
+//!
 //! # What it does not own
 //! Time integration, forces and scenes (`fdem-solver`), contact (`fdem-contact`), meshes
 //! (`fdem-mesh`), dimensions and scale laws (`fdem-scaling`), progress bars and printing
@@ -43,21 +51,40 @@
 mod counts;
 mod error;
 mod file;
+mod loading;
+mod measure;
+mod membrane;
 mod placement;
+mod plot;
 mod prepare;
 mod spec;
+mod test_run;
+mod test_spec;
 
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;
 pub use file::{FORMAT_VERSION, MAGIC};
+pub use loading::{TEST_WALL_BOTTOM, TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel, membrane_spec};
+pub use measure::*;
+pub use membrane::*;
 pub use placement::{Column, MAX_ATTEMPTS, NoRoom, PlacedParticle, place_spheres, random_rotation};
+pub use plot::*;
 pub use prepare::{
     COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer, Phase,
     PreparationReport, PreparedSpecimen, Silent, Snapshot, Status, WALL_BOTTOM, WALL_CYLINDER,
-    WALL_TOP, particle_sections, preparation_walls, prepare, unbalanced_force_ratio,
+    WALL_TOP, particle_sections, preparation_walls, prepare, specimen_time_step,
+    unbalanced_force_ratio,
 };
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,
-    ORIGINAL_SIZE, PRESETS, PreparationSection, Preset, Simulated, SizeClass, SpecimenMesh,
-    SpecimenSpec, default_material,
+    ORIGINAL_SIZE, PRESETS, PreparationSection, Preset, SERIES_SIZE, Simulated, SizeClass,
+    SpecimenMesh, SpecimenSpec, default_material,
+};
+pub use test_run::{
+    ConsolidationResult, PhaseCost, SilentTest, TestObserver, TestOptions, TestPhase, TestPlan,
+    TestStatus, TestSummary, run_test,
+};
+pub use test_spec::{
+    MAX_TARGET_STRAIN, MEMBRANE_SPACING, MIN_DIVISIONS_AROUND, MembraneSection, TestSection,
+    quick_spec,
 };

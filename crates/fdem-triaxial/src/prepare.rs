@@ -309,7 +309,7 @@ fn scene(
 /// The time step of a specimen: `dt_safety` times the smallest stable bound of one
 /// particle of each simulated size (the bounds are per particle: element eigenvalues and
 /// per-node contact springs), with the returned bound and its source.
-fn time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), TriaxialError> {
+pub fn specimen_time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), TriaxialError> {
     let sizes = spec.simulated()?.sizes;
     let d_max = sizes.iter().copied().fold(0.0, f64::max);
     let probe: Vec<PlacedParticle> = sizes
@@ -705,7 +705,7 @@ pub fn prepare(
     let d_max = sizes.iter().copied().fold(0.0, f64::max);
     let prep = &spec.preparation;
 
-    let (dt, dt_bound, dt_bound_source) = time_step(spec)?;
+    let (dt, dt_bound, dt_bound_source) = specimen_time_step(spec)?;
 
     // Placement: the column's extra height is a whole number of steps of platen travel.
     observer.phase(Phase::Place, 0);

@@ -3,6 +3,7 @@
 //! exact scaling).
 
 use crate::TriaxialError;
+use crate::test_spec::{MembraneSection, TestSection};
 use fdem_mesh::{ElementOrder, Sizing};
 use fdem_scaling::ScaleLaw;
 use fdem_solver::toml_input::{level, vector};
@@ -189,6 +190,12 @@ pub struct SpecimenSpec {
     /// `[preparation]`: the dynamic method's settings.
     #[serde(default)]
     pub preparation: PreparationSection,
+    /// `[membrane]`: the test's membrane (material and resolution).
+    #[serde(default)]
+    pub membrane: MembraneSection,
+    /// `[test]`: consolidation, shear and outputs of the triaxial test.
+    #[serde(default)]
+    pub test: TestSection,
 }
 
 /// One built-in test of the paper (Table 4).
@@ -228,6 +235,11 @@ pub const PRESETS: &[Preset] = &[
     preset("B2s", true, 1.5, true),
     preset("B3s", true, 2.0, true),
 ];
+
+/// Largest simulated particle diameter of both paper series (m): 60 mm in E4/E4s and in
+/// B3/B3s. The presets' loading velocity keeps these coarsest members at the inertial
+/// number 1e-3, so every test of a series shares one velocity (MODEL.md section 5).
+pub const SERIES_SIZE: f64 = 0.060;
 
 /// Diameter of the original particles of both series (m): 15 mm, and 30 mm for the
 /// coarse half of the binary series.
@@ -286,6 +298,11 @@ impl Preset {
             contact: ContactSection::default(),
             mesh: SpecimenMesh::default(),
             preparation: PreparationSection::default(),
+            membrane: MembraneSection::default(),
+            test: TestSection {
+                series_size: Some(SERIES_SIZE),
+                ..TestSection::default()
+            },
         }
     }
 }
@@ -344,7 +361,7 @@ pub fn default_material() -> MaterialSection {
 
 // ---- single-value rules, shared by deserialization (with line numbers) and validate ----
 
-fn check_positive(v: f64) -> Result<f64, String> {
+pub(crate) fn check_positive(v: f64) -> Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
@@ -354,7 +371,7 @@ fn check_positive(v: f64) -> Result<f64, String> {
     }
 }
 
-fn check_non_negative(v: f64) -> Result<f64, String> {
+pub(crate) fn check_non_negative(v: f64) -> Result<f64, String> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
     } else {
@@ -362,7 +379,7 @@ fn check_non_negative(v: f64) -> Result<f64, String> {
     }
 }
 
-fn check_fraction(v: f64) -> Result<f64, String> {
+pub(crate) fn check_fraction(v: f64) -> Result<f64, String> {
     if v > 0.0 && v <= 1.0 {
         Ok(v)
     } else {
@@ -370,19 +387,19 @@ fn check_fraction(v: f64) -> Result<f64, String> {
     }
 }
 
-fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+pub(crate) fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     check_positive(f64::deserialize(d)?).map_err(D::Error::custom)
 }
 
-fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+pub(crate) fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     positive(d).map(Some)
 }
 
-fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+pub(crate) fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     check_non_negative(f64::deserialize(d)?).map_err(D::Error::custom)
 }
 
-fn fraction<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+pub(crate) fn fraction<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     check_fraction(f64::deserialize(d)?).map_err(D::Error::custom)
 }
 
@@ -390,7 +407,7 @@ fn fraction_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error
     fraction(d).map(Some)
 }
 
-fn at_least_one<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+pub(crate) fn at_least_one<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
     let v = u64::deserialize(d)?;
     if v >= 1 {
         Ok(v)
@@ -477,16 +494,44 @@ impl SpecimenSpec {
     }
 
     /// The axial loading velocity of the test (m/s): the given one, or the one at which
-    /// the inertial number `I = eps_rate d sqrt(rho / p)` is 1e-3 with `d` the largest
-    /// original (h = 1) diameter, `rho` the density and `p` the confining pressure:
-    /// `v = 1e-3 H / (d sqrt(rho / p))`. Coarse graining keeps the domain, loads and
-    /// velocity, so every variant of a test shares this velocity.
+    /// the inertial number `I = eps_rate d sqrt(rho / p)` equals `test.inertial_number`
+    /// (1e-3) with `d = test.series_size` (default: this specimen's largest simulated
+    /// diameter), `rho` the density and `p` the confining pressure:
+    /// `v = I H / (d sqrt(rho / p))`. Coarse graining keeps the domain, loads and velocity,
+    /// so every member of a series given the same `series_size` shares this velocity and
+    /// the coarsest member has the inertial number asked for.
     pub fn loading_velocity(&self) -> f64 {
         self.loading_velocity.unwrap_or_else(|| {
-            let d = self.gradation.iter().map(|c| c.size).fold(0.0, f64::max);
+            let d = self
+                .test
+                .series_size
+                .unwrap_or_else(|| self.largest_simulated_size());
             let root = (self.material.density / self.confining_pressure).sqrt();
-            DEFAULT_INERTIAL_NUMBER * self.height / (d * root)
+            self.test.inertial_number * self.height / (d * root)
         })
+    }
+
+    /// The largest simulated particle diameter (m): h times the largest gradation size.
+    pub fn largest_simulated_size(&self) -> f64 {
+        self.coarse_graining * self.gradation.iter().map(|c| c.size).fold(0.0, f64::max)
+    }
+
+    /// The smallest simulated particle diameter (m).
+    pub fn smallest_simulated_size(&self) -> f64 {
+        self.coarse_graining
+            * self
+                .gradation
+                .iter()
+                .map(|c| c.size)
+                .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The inertial number of the test with this specimen's own largest simulated size:
+    /// `I = (v / H) d_max sqrt(rho / sigma_0)` (density as simulated: exact scaling keeps
+    /// it).
+    pub fn inertial_number(&self) -> f64 {
+        let root = (self.material.density / self.confining_pressure).sqrt();
+        self.loading_velocity() / self.height * self.largest_simulated_size() * root
     }
 
     /// The parameters as simulated (sizes x h; with exact scaling, every material and
@@ -598,6 +643,7 @@ impl SpecimenSpec {
         if let Some(v) = self.loading_velocity {
             single("loading_velocity", check_positive(v))?;
         }
+        self.test.check().map_err(|(key, m)| fail(key, m))?;
         let m = &self.material;
         single("material.density", check_positive(m.density))?;
         single("material.youngs_modulus", check_positive(m.youngs_modulus))?;

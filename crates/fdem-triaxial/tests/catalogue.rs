@@ -185,14 +185,66 @@ fn exact_scaling_changes_only_the_penalty_by_the_scale_law() {
 }
 
 #[test]
-fn default_loading_velocity_has_inertial_number_1e_3() {
-    let spec = Preset::find("E1").unwrap().spec();
-    let v = spec.loading_velocity();
-    let rate = v / spec.height;
-    let inertial = rate * 0.015 * (2650.0f64 / 0.8e6).sqrt();
+fn default_loading_velocity_keeps_the_coarsest_member_at_inertial_number_1e_3() {
+    // Both paper series end at 60 mm particles (E4/E4s, B3/B3s): their inertial number is
+    // 1e-3 and every member of the series shares the velocity.
+    let e4s = Preset::find("E4s").unwrap().spec();
+    let v = e4s.loading_velocity();
+    let inertial = v / e4s.height * 0.060 * (2650.0f64 / 0.8e6).sqrt();
     assert!((inertial - 1e-3).abs() < 1e-15, "{inertial}");
-    // Coarse graining keeps the loading of the domain.
-    assert_eq!(Preset::find("E4s").unwrap().spec().loading_velocity(), v);
+    assert!((e4s.inertial_number() - 1e-3).abs() < 1e-15);
+    for name in ["E1", "E2", "E3", "E4", "B1", "B2s", "B3"] {
+        let spec = Preset::find(name).unwrap().spec();
+        assert_eq!(spec.loading_velocity(), v, "{name}");
+        assert!(spec.inertial_number() <= 1e-3 * (1.0 + 1e-12), "{name}");
+    }
+    // E1 (15 mm) runs four times slower in inertial number.
+    let e1 = Preset::find("E1").unwrap().spec();
+    assert!((e1.inertial_number() - 0.25e-3).abs() < 1e-15);
+    // A user specimen without series_size uses its own largest simulated size.
+    let mut own = e4s.clone();
+    own.test.series_size = None;
+    own.coarse_graining = 2.0;
+    assert!((own.inertial_number() - 1e-3).abs() < 1e-15);
+}
+
+#[test]
+fn bad_test_settings_are_refused_with_one_line_naming_the_key() {
+    let base = "diameter = 0.3\nheight = 0.6\ngradation = [{ size = 0.015, mass_fraction = 1.0 }]\n";
+    for (extra, key) in [
+        ("confining_pressure = -1e5\n", "confining_pressure"),
+        ("[test]\ntarget_strain = 0.7\n", "test.target_strain"),
+        ("[test]\ntarget_strain = 0.0\n", "test.target_strain"),
+        ("[test]\noutput_strain = 0.2\n", "test.output_strain"),
+        ("[test]\ninertial_number = 0\n", "test.inertial_number"),
+        ("[test]\nservo_band = 2\n", "test.servo_band"),
+        ("[test]\nunknown = 1\n", "test"),
+        ("[membrane]\npoisson_ratio = 0.6\n", "membrane.poisson_ratio"),
+        ("[membrane]\ndivisions_around = 0\n", "membrane.divisions_around"),
+        ("[membrane]\ndamping = -1\n", "membrane.damping"),
+    ] {
+        let text = format!("{base}{extra}");
+        let e = SpecimenSpec::from_toml_str(&text, "t.toml").unwrap_err().to_string();
+        assert!(!e.contains('\n'), "{e}");
+        assert!(e.contains(key), "{key}: {e}");
+    }
+    let e = SpecimenSpec::from_toml_str("height = 0.6\n", "t.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("diameter"), "{e}");
+}
+
+#[test]
+fn the_quick_specimen_is_valid_and_test_settings_do_not_change_the_preparation() {
+    let quick = fdem_triaxial::quick_spec();
+    assert_eq!(quick.name, "quick");
+    let mut other = quick.clone();
+    other.test.target_strain = 0.1;
+    other.membrane.youngs_modulus = 1e6;
+    other.loading_velocity = Some(0.1);
+    assert_eq!(quick.preparation_key(), other.preparation_key());
+    other.seed += 1;
+    assert_ne!(quick.preparation_key(), other.preparation_key());
 }
 
 fn refused(text: &str) -> (String, String) {

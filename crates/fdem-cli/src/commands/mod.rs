@@ -6,6 +6,7 @@ pub mod micro;
 pub mod run;
 pub mod scale;
 pub mod specimen;
+pub mod triaxial;
 
 use anyhow::{Context, bail};
 

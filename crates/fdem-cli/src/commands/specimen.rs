@@ -67,18 +67,35 @@ pub struct SpecimenArgs {
     threads: Option<usize>,
 }
 
-/// Progress on stderr: one line per phase, and a bar with an estimate on a terminal.
-struct Progress {
+/// Progress of a preparation on stderr: one line per phase, and a bar with an estimate on
+/// a terminal.
+pub struct PreparationProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
     interrupt: Arc<AtomicBool>,
 }
 
-impl Observer for Progress {
-    fn phase(&mut self, phase: Phase, planned_steps: u64) {
+impl PreparationProgress {
+    /// A reporter that draws bars when `terminal` and stops when `interrupt` is set.
+    pub fn new(terminal: bool, interrupt: Arc<AtomicBool>) -> Self {
+        PreparationProgress {
+            bar: None,
+            terminal,
+            interrupt,
+        }
+    }
+
+    /// Clears the bar.
+    pub fn finish(&mut self) {
         if let Some(bar) = self.bar.take() {
             bar.finish_and_clear();
         }
+    }
+}
+
+impl Observer for PreparationProgress {
+    fn phase(&mut self, phase: Phase, planned_steps: u64) {
+        self.finish();
         match phase {
             Phase::Place => eprintln!("place: random loose packing"),
             Phase::Compact => eprintln!("compact: {planned_steps} steps"),
@@ -331,15 +348,9 @@ pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
             "prepare {}: {} particles, {} elements, {} nodes",
             spec.name, counts.particles, counts.elements, counts.nodes
         );
-        let mut progress = Progress {
-            bar: None,
-            terminal: std::io::stderr().is_terminal(),
-            interrupt,
-        };
+        let mut progress = PreparationProgress::new(std::io::stderr().is_terminal(), interrupt);
         let result = prepare(&spec, &mut progress);
-        if let Some(bar) = progress.bar.take() {
-            bar.finish_and_clear();
-        }
+        progress.finish();
         let prepared = result?;
         prepared.save(out)?;
         if args.json {

@@ -1,0 +1,312 @@
+//! `fdem triaxial`: the numerical triaxial test end to end (docs/TRIAXIAL.md): prepare
+//! the specimen (or reuse a prepared one), consolidate, shear, write the outputs.
+
+use crate::commands::specimen::{OrderArg, PreparationProgress};
+use anyhow::{Context, bail};
+use fdem_mesh::ElementOrder;
+use fdem_triaxial::{
+    PreparedSpecimen, Preset, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
+    TestStatus, prepare, quick_spec, run_test, specimen_time_step,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// File name of the prepared specimen kept in the output directory for reuse.
+const PREPARED_FILE: &str = "specimen.fdemspec";
+
+/// Arguments of `fdem triaxial`.
+#[derive(clap::Args, Debug)]
+pub struct TriaxialArgs {
+    /// A test of the paper's Table 4 (E1 ... B3s).
+    #[arg(long, value_name = "NAME")]
+    test: Option<String>,
+    /// A user specimen and test definition (TOML, docs/SPECIMENS.md and docs/TRIAXIAL.md).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// The quick test: a small, coarse specimen that runs in about a minute.
+    #[arg(long)]
+    quick: bool,
+    /// A prepared specimen file to test instead of preparing one (its own definition is used).
+    #[arg(long, value_name = "FILE")]
+    specimen: Option<PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Override the element order of the particle meshes.
+    #[arg(long, value_enum)]
+    order: Option<OrderArg>,
+    /// Override the mesh subdivision level (0 to 4).
+    #[arg(long)]
+    level: Option<u32>,
+    /// Override the target axial strain.
+    #[arg(long)]
+    strain: Option<f64>,
+    /// Prepare again even if DIR/specimen.fdemspec holds this specimen.
+    #[arg(long)]
+    fresh: bool,
+    /// Also write ParaView frames of particles, membrane and platens.
+    #[arg(long)]
+    vtk: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+/// The definition named by --test, --config or --quick with the overrides applied.
+fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
+    let mut spec = match (&args.test, &args.config, args.quick) {
+        (Some(name), None, false) => Preset::find(name)?.spec(),
+        (None, Some(path), false) => SpecimenSpec::load(path)?,
+        (None, None, true) => quick_spec(),
+        _ => bail!("give exactly one of --test NAME, --config FILE, --quick or --specimen FILE"),
+    };
+    if let Some(order) = args.order {
+        spec.mesh.order = match order {
+            OrderArg::Linear => ElementOrder::Linear,
+            OrderArg::Quadratic => ElementOrder::Quadratic,
+        };
+    }
+    if let Some(level) = args.level {
+        spec.mesh.level = level;
+    }
+    if let Some(strain) = args.strain {
+        spec.test.target_strain = strain;
+    }
+    let origin = args.config.as_ref().map_or_else(
+        || format!("preset {}", spec.name),
+        |p| p.display().to_string(),
+    );
+    spec.validate(&origin)?;
+    Ok(spec)
+}
+
+/// Progress of the test on stderr: the plan, one line per phase, a bar on a terminal.
+struct TestProgress {
+    bar: Option<ProgressBar>,
+    terminal: bool,
+    interrupt: Arc<AtomicBool>,
+}
+
+impl TestObserver for TestProgress {
+    fn plan(&mut self, plan: &TestPlan) {
+        let line = format!(
+            "test: {} particles, {} + {} membrane nodes; dt = {:.3e} s (bound {:.3e} s, {}); \
+             v = {:.4} m/s, I = {:.2e}; shear {} steps, consolidation at most {}; \
+             {:.2} ms/step: shear about {}, at most {} with consolidation",
+            plan.particles,
+            plan.particle_nodes,
+            plan.membrane_nodes,
+            plan.dt,
+            plan.dt_bound,
+            plan.dt_bound_source,
+            plan.loading_velocity,
+            plan.inertial_number,
+            plan.shear_steps,
+            plan.consolidation_steps_max,
+            1e3 * plan.seconds_per_step,
+            duration(plan.estimated_shear_seconds),
+            duration(plan.estimated_seconds_max),
+        );
+        match &self.bar {
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+
+    fn phase(&mut self, phase: TestPhase, planned_steps: u64) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
+        }
+        eprintln!("{}: up to {planned_steps} steps", phase.name());
+        if self.terminal {
+            let bar = ProgressBar::new(planned_steps);
+            if let Ok(style) = ProgressStyle::with_template(
+                "{prefix:>13} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
+            ) {
+                bar.set_style(style);
+            }
+            bar.set_prefix(phase.name());
+            self.bar = Some(bar);
+        }
+    }
+
+    fn progress(&mut self, status: &TestStatus) -> bool {
+        if let Some(bar) = &self.bar {
+            bar.set_position(status.steps);
+            bar.set_message(match status.phase {
+                TestPhase::Consolidation => {
+                    format!("sigma_a/sigma_0 = {:.4}", status.stress_ratio)
+                }
+                TestPhase::Shear => format!(
+                    "eps_a = {:.2} %, eta = {:.3}",
+                    100.0 * status.eps_a,
+                    status.eta
+                ),
+            });
+        }
+        !self.interrupt.load(Ordering::SeqCst)
+    }
+}
+
+fn duration(seconds: f64) -> String {
+    if !seconds.is_finite() {
+        return "unknown".into();
+    }
+    if seconds < 120.0 {
+        format!("{seconds:.0} s")
+    } else {
+        format!("{:.1} min", seconds / 60.0)
+    }
+}
+
+/// The prepared specimen: the given file, the reusable one in the output directory, or a
+/// new preparation saved there.
+fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<PreparedSpecimen> {
+    if let Some(path) = &args.specimen {
+        if args.test.is_some() || args.config.is_some() || args.quick {
+            bail!(
+                "--specimen brings its own definition; it does not go with --test, --config or --quick"
+            );
+        }
+        let mut s = PreparedSpecimen::load(path)?;
+        if let Some(strain) = args.strain {
+            s.spec.test.target_strain = strain;
+            s.spec.validate(&path.display().to_string())?;
+        }
+        return Ok(s);
+    }
+    let spec = definition(args)?;
+    let cache = args.out.join(PREPARED_FILE);
+    if !args.fresh && cache.exists() {
+        match PreparedSpecimen::load(&cache) {
+            Ok(s) if s.spec.preparation_key() == spec.preparation_key() => {
+                eprintln!(
+                    "reusing the prepared specimen {} (--fresh prepares again)",
+                    cache.display()
+                );
+                return Ok(PreparedSpecimen { spec, ..s });
+            }
+            Ok(_) => eprintln!(
+                "{} holds another specimen; preparing this one",
+                cache.display()
+            ),
+            Err(e) => eprintln!("{e}; preparing again"),
+        }
+    }
+    let counts = spec.counts()?;
+    let (dt, _, source) = specimen_time_step(&spec)?;
+    eprintln!(
+        "prepare {}: {} particles, {} elements, {} nodes; dt = {dt:.3e} s ({source})",
+        spec.name, counts.particles, counts.elements, counts.nodes
+    );
+    let mut progress =
+        PreparationProgress::new(std::io::stderr().is_terminal(), Arc::clone(interrupt));
+    let result = prepare(&spec, &mut progress);
+    progress.finish();
+    let prepared = result?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    prepared.save(&cache)?;
+    let r = &prepared.report;
+    eprintln!(
+        "prepared in {:.1} s ({} + {} steps): nominal solid fraction {:.3}, coordination {:.2}; \
+         saved to {}",
+        r.wall_seconds,
+        r.compact_steps,
+        r.settle_steps,
+        r.solid_fraction_nominal,
+        r.coordination_number,
+        cache.display()
+    );
+    if !r.checks.failures.is_empty() {
+        bail!(
+            "the prepared specimen failed its checks: {}",
+            r.checks.failures.join("; ")
+        );
+    }
+    Ok(prepared)
+}
+
+/// Prepares (or reuses), tests and reports.
+pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
+    if let Some(threads) = args.threads {
+        anyhow::ensure!(threads > 0, "--threads must be at least 1");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    if let Some(strain) = args.strain
+        && !(strain > 0.0 && strain <= fdem_triaxial::MAX_TARGET_STRAIN)
+    {
+        bail!(
+            "--strain must lie in (0, {}], got {strain}",
+            fdem_triaxial::MAX_TARGET_STRAIN
+        );
+    }
+    let interrupt = Arc::new(AtomicBool::new(false));
+    {
+        let flag = Arc::clone(&interrupt);
+        let _ = ctrlc::set_handler(move || {
+            if flag.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+        });
+    }
+    let start = Instant::now();
+    let prepared = prepared(args, &interrupt)?;
+    let mut progress = TestProgress {
+        bar: None,
+        terminal: std::io::stderr().is_terminal(),
+        interrupt: Arc::clone(&interrupt),
+    };
+    let options = TestOptions {
+        out_dir: args.out.clone(),
+        vtk: args.vtk,
+        dt: None,
+    };
+    let result = run_test(&prepared, &options, &mut progress, &interrupt);
+    if let Some(bar) = progress.bar.take() {
+        bar.finish_and_clear();
+    }
+    let summary = result?;
+    report(&summary, &args.out, start.elapsed().as_secs_f64());
+    if summary.status == "interrupted" {
+        bail!(
+            "interrupted: the outputs in {} hold the test up to the interruption (summary.json \
+             says `interrupted`)",
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn report(s: &fdem_triaxial::TestSummary, out: &Path, seconds: f64) {
+    let c = &s.consolidation;
+    println!(
+        "{}: consolidated to sigma_a/sigma_0 = {:.4} in {} steps (unbalanced {:.2e}, kinetic \
+         ratio {:.2e}); sheared {} steps",
+        s.test, c.stress_ratio, c.cost.steps, c.unbalanced_force, c.kinetic_ratio, s.shear.steps
+    );
+    if let Some(curve) = &s.curve {
+        println!(
+            "peak eta = {:.4} at eps_a = {:.2} %; residual eta = {:.4}; max contraction eps_v = \
+             {:.3} %; max dilation rate = {:.3}",
+            curve.peak_eta,
+            100.0 * curve.eps_a_at_peak,
+            curve.residual_eta,
+            100.0 * curve.max_contraction,
+            curve.max_dilation_rate
+        );
+    }
+    println!(
+        "inertial number {:.2e}; wall time {}; outputs in {}",
+        s.plan.inertial_number,
+        duration(seconds),
+        out.display()
+    );
+}

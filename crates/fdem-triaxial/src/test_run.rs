@@ -1,0 +1,786 @@
+//! The triaxial test, end to end: consolidation under the confining pressure with a
+//! servo-controlled top platen, shear at constant platen velocity to the target axial
+//! strain, and the outputs (docs/TRIAXIAL.md): `consolidation.csv`, `curve.csv`,
+//! `summary.json`, `contacts_peak.csv`, `pairs_peak.csv`, `eta.svg`, `eps_v.svg` and,
+//! on request, ParaView frames.
+
+use crate::loading::{TEST_WALL_MEMBRANE, TestModel};
+use crate::measure::{
+    CurvePoint, CurveSummary, CurveWriter, Measurement, PeakTracker, Reference, summarize,
+};
+use crate::plot::{CurvePlot, CurveSeries, plot_curves};
+use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
+use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
+use fdem_solver::output::{BoundaryBody, VtkSeries, contact_snapshot_text, write_atomically};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Steps timed before the cost estimate is made.
+const CALIBRATION_STEPS: u64 = 200;
+/// Curve rows between two ParaView frames (with `vtk`).
+const ROWS_PER_FRAME: usize = 10;
+/// Steps between two progress reports.
+const PROGRESS_STEPS: u64 = 250;
+
+/// Where and what to write.
+#[derive(Clone, Debug)]
+pub struct TestOptions {
+    /// Output directory (created).
+    pub out_dir: PathBuf,
+    /// Write ParaView frames of particles, membrane and platens.
+    pub vtk: bool,
+    /// Time step (s); default the preparation's.
+    pub dt: Option<f64>,
+}
+
+/// The two stages of the test.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TestPhase {
+    /// Step 1: isotropic consolidation to sigma_0.
+    Consolidation,
+    /// Step 2: shear at constant platen velocity.
+    Shear,
+}
+
+impl TestPhase {
+    /// Name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            TestPhase::Consolidation => "consolidation",
+            TestPhase::Shear => "shear",
+        }
+    }
+}
+
+/// What the test will cost, announced before the long work starts.
+#[derive(Clone, Debug, Serialize)]
+pub struct TestPlan {
+    /// Particles, particle nodes and elements.
+    pub particles: usize,
+    /// Nodes of the particles.
+    pub particle_nodes: usize,
+    /// Elements of the particles.
+    pub elements: usize,
+    /// Nodes of the membrane.
+    pub membrane_nodes: usize,
+    /// Time step (s) and the bound it respects.
+    pub dt: f64,
+    /// Smallest stable bound of the assembled test (s) and what sets it.
+    pub dt_bound: f64,
+    /// What sets the bound.
+    pub dt_bound_source: String,
+    /// Platen velocity of the shear (m/s).
+    pub loading_velocity: f64,
+    /// Inertial number of the shear with the specimen's largest size.
+    pub inertial_number: f64,
+    /// Most steps consolidation may take.
+    pub consolidation_steps_max: u64,
+    /// Steps of the shear.
+    pub shear_steps: u64,
+    /// Measured wall-clock seconds per step (first steps of consolidation).
+    pub seconds_per_step: f64,
+    /// Estimated wall-clock seconds of the shear plus the longest consolidation.
+    pub estimated_seconds_max: f64,
+    /// Estimated wall-clock seconds of the shear alone.
+    pub estimated_shear_seconds: f64,
+}
+
+/// Progress of a phase.
+#[derive(Clone, Debug)]
+pub struct TestStatus {
+    /// The phase.
+    pub phase: TestPhase,
+    /// Steps done in the phase.
+    pub steps: u64,
+    /// Steps planned for the phase (the most it may take for consolidation).
+    pub planned_steps: u64,
+    /// Axial strain from the start of shear (0 during consolidation).
+    pub eps_a: f64,
+    /// Axial stress over sigma_0.
+    pub stress_ratio: f64,
+    /// Stress ratio eta (shear).
+    pub eta: f64,
+}
+
+/// Receives the plan and progress of a test; returning `false` from `progress` stops the
+/// test as interrupted.
+pub trait TestObserver {
+    /// The cost estimate, once, after the first steps.
+    fn plan(&mut self, _plan: &TestPlan) {}
+    /// A phase starts.
+    fn phase(&mut self, _phase: TestPhase, _planned_steps: u64) {}
+    /// Progress, every few hundred steps.
+    fn progress(&mut self, _status: &TestStatus) -> bool {
+        true
+    }
+}
+
+/// An observer that ignores everything.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SilentTest;
+
+impl TestObserver for SilentTest {}
+
+/// Cost of one phase.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PhaseCost {
+    /// Steps taken.
+    pub steps: u64,
+    /// Simulated time (s).
+    pub simulated_time: f64,
+    /// Wall-clock seconds.
+    pub wall_seconds: f64,
+    /// CPU seconds of the process (all threads), when the platform reports them.
+    pub cpu_seconds: Option<f64>,
+}
+
+/// How consolidation ended.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ConsolidationResult {
+    /// The criterion held.
+    pub reached: bool,
+    /// Axial stress over sigma_0 at the end.
+    pub stress_ratio: f64,
+    /// Unbalanced-force ratio at the end.
+    pub unbalanced_force: f64,
+    /// Kinetic over stored energy at the end.
+    pub kinetic_ratio: f64,
+    /// Criterion: `|sigma_l / sigma_0 - 1| <=` this.
+    pub stress_tolerance: f64,
+    /// Criterion: unbalanced-force ratio limit.
+    pub unbalanced_force_limit: f64,
+    /// Criterion: kinetic-energy ratio limit.
+    pub kinetic_ratio_limit: f64,
+    /// Volumetric strain rate at the end over the shear's axial strain rate v / H.
+    pub volume_rate: f64,
+    /// Criterion: volume-rate limit.
+    pub volume_rate_limit: f64,
+    /// Largest overshoot of the axial stress above sigma_0, over sigma_0.
+    pub max_overshoot: f64,
+    /// Phase cost.
+    pub cost: PhaseCost,
+}
+
+/// The `summary.json` of a test.
+#[derive(Clone, Debug, Serialize)]
+pub struct TestSummary {
+    /// `completed`, `interrupted` or `failed`.
+    pub status: String,
+    /// The failure, if any.
+    pub failure: Option<String>,
+    /// Test name.
+    pub test: String,
+    /// Particles (the key `fdem micro` reads the particle count from).
+    pub bodies: usize,
+    /// Coarse-graining factor h.
+    pub coarse_graining: f64,
+    /// Exact scaling applied.
+    pub exact_scaling: bool,
+    /// Counts and step.
+    pub plan: TestPlan,
+    /// Membrane divisions (around, along) and triangles.
+    pub membrane_divisions: [usize; 2],
+    /// Confining pressure sigma_0 (Pa).
+    pub confining_pressure: f64,
+    /// Target axial strain.
+    pub target_strain: f64,
+    /// Consolidation.
+    pub consolidation: ConsolidationResult,
+    /// Shear cost.
+    pub shear: PhaseCost,
+    /// Peak, residual, contraction and dilation of the curve (None before any row).
+    pub curve: Option<CurveSummary>,
+    /// Axial strain of the contact snapshot at the peak.
+    pub peak_snapshot_eps_a: Option<f64>,
+    /// Escape checks made (one per output row) and the most particles found outside.
+    pub escape_checks: u64,
+    /// Particles found outside the membrane at any check (the run stops at the first).
+    pub particles_outside: usize,
+    /// Node-to-membrane hits discarded as fold artefacts (deeper than half the contact
+    /// margin), summed over the evaluations at the outputs, and the most in one of them.
+    pub discarded_membrane_hits: u64,
+    /// The most discarded hits in one output's evaluation.
+    pub discarded_membrane_hits_max: u64,
+    /// Relative energy-balance error at the end.
+    pub energy_balance_error: f64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Files written.
+    pub outputs: Vec<String>,
+}
+
+fn cpu_now() -> Option<cpu_time::ProcessTime> {
+    cpu_time::ProcessTime::try_now().ok()
+}
+
+fn cost(steps: u64, time: f64, wall: Instant, cpu: Option<cpu_time::ProcessTime>) -> PhaseCost {
+    PhaseCost {
+        steps,
+        simulated_time: time,
+        wall_seconds: wall.elapsed().as_secs_f64(),
+        cpu_seconds: cpu
+            .and_then(|c| c.try_elapsed().ok())
+            .map(|d| d.as_secs_f64()),
+    }
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> TriaxialError + '_ {
+    move |e| TriaxialError::io("writing", path, e)
+}
+
+fn out(e: fdem_solver::SolverError) -> TriaxialError {
+    TriaxialError::Test {
+        phase: "output",
+        message: e.to_string(),
+    }
+}
+
+/// The running test: model, outputs and bookkeeping.
+struct Run<'a> {
+    model: TestModel,
+    prepared: &'a PreparedSpecimen,
+    options: &'a TestOptions,
+    sigma_0: f64,
+    reference_force: f64,
+    vtk: Option<VtkSeries>,
+    boundary_frames: Vec<(f64, String)>,
+    escape_checks: u64,
+    discarded: (u64, u64),
+}
+
+impl Run<'_> {
+    fn measurement(&self) -> Measurement {
+        let sim = &self.model.sim;
+        Measurement {
+            time: sim.time,
+            height: self.model.height(),
+            volume: self.model.volume(),
+            axial_force: self.model.axial_force(),
+            kinetic_energy: sim.energy().kinetic,
+            unbalanced_force: unbalanced_force_ratio(sim, self.reference_force),
+            contacts: sim.contact().map_or(0, |c| c.model.node_contacts().len()) as u64,
+            step: sim.step,
+        }
+    }
+
+    /// Axial stress over sigma_0 from the platen force and the current V/H.
+    fn stress_ratio(&self) -> f64 {
+        let sigma = crate::measure::axial_stress(
+            self.model.axial_force(),
+            self.model.volume(),
+            self.model.height(),
+        );
+        sigma / self.sigma_0
+    }
+
+    fn check_escape(&mut self, phase: &'static str) -> Result<(), TriaxialError> {
+        self.escape_checks += 1;
+        if let Some(c) = self.model.sim.contact() {
+            let n = c.last_report().discarded_sheet_hits as u64;
+            self.discarded = (self.discarded.0 + n, self.discarded.1.max(n));
+        }
+        let outside = self.model.particles_outside();
+        if let Some(first) = outside.first() {
+            return Err(TriaxialError::Test {
+                phase,
+                message: format!(
+                    "{} particle(s) left the membrane (first: particle {first}) at step {}, \
+                     time {:e} s; refine the membrane (membrane.divisions_around) or raise \
+                     contact.normal_penalty",
+                    outside.len(),
+                    self.model.sim.step,
+                    self.model.sim.time
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Result<(), TriaxialError> {
+        let Some(vtk) = self.vtk.as_mut() else {
+            return Ok(());
+        };
+        vtk.frame(&self.model.sim).map_err(out)?;
+        // Membrane and platens as triangles in one file per frame.
+        let sim = &self.model.sim;
+        let mut points: Vec<[f64; 3]> = Vec::new();
+        let mut cells: Vec<usize> = Vec::new();
+        let mut part: Vec<f64> = Vec::new();
+        let first = self.model.membrane.first_node();
+        let n = self.model.membrane.n_nodes();
+        points.extend_from_slice(&sim.state.positions[first..first + n]);
+        for t in &self.model.membrane_triangles {
+            cells.extend(t.iter().map(|i| i - first));
+            part.push(0.0);
+        }
+        let r = 1.05 * self.model.membrane_spec.radius;
+        for (k, z) in [
+            self.model.platen_z(crate::loading::TEST_WALL_BOTTOM),
+            self.model.platen_z(crate::loading::TEST_WALL_TOP),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let centre = points.len();
+            points.push([0.0, 0.0, z]);
+            let segments = 48;
+            for s in 0..segments {
+                let a = std::f64::consts::TAU * s as f64 / segments as f64;
+                points.push([r * a.cos(), r * a.sin(), z]);
+            }
+            for s in 0..segments {
+                cells.extend([centre, centre + 1 + s, centre + 1 + (s + 1) % segments]);
+                part.push(1.0 + k as f64);
+            }
+        }
+        let dir = self.options.out_dir.join("frames");
+        let name = format!("boundary_{:06}.vtu", self.boundary_frames.len());
+        let frame = VtuFrame {
+            points: &points,
+            cells: &cells,
+            nodes_per_cell: 3,
+            point_fields: vec![],
+            cell_fields: vec![VtuField {
+                name: "part",
+                components: 1,
+                values: &part,
+            }],
+        };
+        let err = |e: fdem_mesh::MeshError| TriaxialError::Test {
+            phase: "output",
+            message: e.to_string(),
+        };
+        write_vtu(&dir.join(&name), &frame).map_err(err)?;
+        self.boundary_frames
+            .push((sim.time, format!("frames/{name}")));
+        write_pvd(
+            &self.options.out_dir.join("boundary.pvd"),
+            &self.boundary_frames,
+        )
+        .map_err(err)
+    }
+
+    fn snapshot(&self) -> Option<(String, String)> {
+        contact_snapshot_text(
+            &self.model.sim,
+            Some(BoundaryBody {
+                body: self.model.membrane_body(),
+                as_wall: TEST_WALL_MEMBRANE,
+            }),
+        )
+    }
+}
+
+/// Runs the triaxial test on a prepared specimen (consolidation, then shear) and writes
+/// its outputs into `options.out_dir`. Stops early, with complete outputs and a summary
+/// marked `interrupted`, when `interrupt` is set or the observer asks to.
+///
+/// # Errors
+/// A set-up the membrane or step refuses, a solver error, a particle escaping the
+/// membrane, a consolidation that does not reach its criterion in time, or an output that
+/// cannot be written. Outputs written so far stay complete, and the summary records the
+/// failure.
+pub fn run_test(
+    prepared: &PreparedSpecimen,
+    options: &TestOptions,
+    observer: &mut dyn TestObserver,
+    interrupt: &AtomicBool,
+) -> Result<TestSummary, TriaxialError> {
+    let spec = &prepared.spec;
+    let dir = &options.out_dir;
+    std::fs::create_dir_all(dir).map_err(|e| TriaxialError::io("creating directory", dir, e))?;
+    let model = TestModel::build(prepared, options.dt)?;
+    let sigma_0 = spec.confining_pressure;
+    let d_min = spec.smallest_simulated_size();
+    let vtk = if options.vtk {
+        Some(VtkSeries::create(dir).map_err(out)?)
+    } else {
+        None
+    };
+    let mut run = Run {
+        model,
+        prepared,
+        options,
+        sigma_0,
+        reference_force: sigma_0 * d_min * d_min,
+        vtk,
+        boundary_frames: Vec::new(),
+        escape_checks: 0,
+        discarded: (0, 0),
+    };
+    let test = &spec.test;
+    let velocity = spec.loading_velocity();
+    let dt = run.model.sim.dt;
+    let height = spec.height;
+    let consolidation_time = test.consolidation_time.unwrap_or(0.1 * height / velocity);
+    let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
+    let shear_steps =
+        (height * (1.0 - (-test.target_strain).exp()) / (velocity * dt)).ceil() as u64;
+    let membrane = &run.model.membrane_spec;
+    let mut summary = TestSummary {
+        status: "running".into(),
+        failure: None,
+        test: spec.name.clone(),
+        bodies: run.model.particles,
+        coarse_graining: spec.coarse_graining,
+        exact_scaling: spec.exact_scaling,
+        plan: TestPlan {
+            particles: run.model.particles,
+            particle_nodes: run.model.membrane.first_node(),
+            elements: run.model.elements,
+            membrane_nodes: run.model.membrane.n_nodes(),
+            dt,
+            dt_bound: run.model.sim.bound.dt,
+            dt_bound_source: run.model.sim.bound.source.clone(),
+            loading_velocity: velocity,
+            inertial_number: spec.inertial_number(),
+            consolidation_steps_max,
+            shear_steps,
+            seconds_per_step: f64::NAN,
+            estimated_seconds_max: f64::NAN,
+            estimated_shear_seconds: f64::NAN,
+        },
+        membrane_divisions: [membrane.divisions_around, membrane.divisions_along],
+        confining_pressure: sigma_0,
+        target_strain: test.target_strain,
+        consolidation: ConsolidationResult {
+            stress_tolerance: test.stress_tolerance,
+            unbalanced_force_limit: test.unbalanced_force,
+            kinetic_ratio_limit: test.kinetic_ratio,
+            volume_rate_limit: test.volume_rate,
+            ..ConsolidationResult::default()
+        },
+        shear: PhaseCost::default(),
+        curve: None,
+        peak_snapshot_eps_a: None,
+        escape_checks: 0,
+        particles_outside: 0,
+        discarded_membrane_hits: 0,
+        discarded_membrane_hits_max: 0,
+        energy_balance_error: 0.0,
+        threads: rayon::current_num_threads(),
+        outputs: Vec::new(),
+    };
+    let mut points: Vec<CurvePoint> = Vec::new();
+    let mut peak: Option<(String, String)> = None;
+    let result = stages(
+        &mut run,
+        &mut summary,
+        &mut points,
+        &mut peak,
+        observer,
+        interrupt,
+    );
+    // Whatever happened, finish the outputs so far.
+    run.escape_checks = run.escape_checks.max(summary.escape_checks);
+    summary.escape_checks = run.escape_checks;
+    (
+        summary.discarded_membrane_hits,
+        summary.discarded_membrane_hits_max,
+    ) = run.discarded;
+    summary.energy_balance_error = {
+        let e = run.model.sim.energy();
+        run.model.sim.relative_balance_error(&e)
+    };
+    match &result {
+        Ok(true) => summary.status = "completed".into(),
+        Ok(false) => summary.status = "interrupted".into(),
+        Err(e) => {
+            summary.status = "failed".into();
+            summary.failure = Some(e.to_string());
+        }
+    }
+    finish(&run, &mut summary, &points, peak.as_ref())?;
+    result.map(|_| summary)
+}
+
+/// Consolidation then shear; `Ok(false)` when interrupted.
+fn stages(
+    run: &mut Run<'_>,
+    summary: &mut TestSummary,
+    points: &mut Vec<CurvePoint>,
+    peak: &mut Option<(String, String)>,
+    observer: &mut dyn TestObserver,
+    interrupt: &AtomicBool,
+) -> Result<bool, TriaxialError> {
+    let spec = &run.prepared.spec;
+    let test = spec.test.clone();
+    let velocity = spec.loading_velocity();
+    let dir = run.options.out_dir.clone();
+    let stop = |observer_ok: bool| !observer_ok || interrupt.load(Ordering::Relaxed);
+    let solver = |phase: &'static str| {
+        move |e: fdem_solver::SolverError| TriaxialError::Test {
+            phase,
+            message: e.to_string(),
+        }
+    };
+
+    // ---- Step 1: consolidation, servo on the top platen ----
+    run.check_escape("consolidation")?;
+    run.frame()?;
+    let wall = Instant::now();
+    let cpu = cpu_now();
+    let planned = summary.plan.consolidation_steps_max;
+    observer.phase(TestPhase::Consolidation, planned);
+    let log_path = dir.join("consolidation.csv");
+    let mut log = CurveWriter::new(&log_path).map_err(io(&log_path))?;
+    summary.outputs.push("consolidation.csv".into());
+    let prepared_state = Reference {
+        h0: run.model.height(),
+        v0: run.model.volume(),
+        sigma_0: run.sigma_0,
+    };
+    let v_max = test.servo_speed * velocity;
+    // The pressure rises from the lateral stress the preparation left (at most sigma_0)
+    // to sigma_0 over the ramp; the servo follows the same target.
+    let ramp_time = test.ramp_time.unwrap_or(0.01 * spec.height / velocity);
+    let start_pressure = run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0);
+    let t_start = run.model.sim.time;
+    let sigma_0 = run.sigma_0;
+    let target = move |t: f64| {
+        let f = ((t - t_start) / ramp_time).clamp(0.0, 1.0);
+        start_pressure + f * (sigma_0 - start_pressure)
+    };
+    let strain_rate = velocity / spec.height;
+    let mut last_volume = (run.model.sim.time, run.model.volume());
+    // Forces and the energy reference at the starting pressure.
+    run.model.set_pressure(target(t_start));
+    run.model
+        .sim
+        .rebase_energy()
+        .map_err(solver("consolidation"))?;
+    let mut steps = 0u64;
+    let mut result = &mut summary.consolidation;
+    loop {
+        let pressure = target(run.model.sim.time);
+        run.model.set_pressure(pressure);
+        let ratio = run.stress_ratio();
+        result.max_overshoot = result.max_overshoot.max(ratio - 1.0);
+        // Proportional servo, saturated: full speed at `servo_band` relative error.
+        let error = (pressure / run.sigma_0 - ratio) / test.servo_band;
+        run.model
+            .set_top_velocity(-v_max * error.clamp(-1.0, 1.0))?;
+        run.model.sim.advance().map_err(solver("consolidation"))?;
+        steps += 1;
+        if steps == CALIBRATION_STEPS {
+            let per_step = wall.elapsed().as_secs_f64() / steps as f64;
+            let plan = &mut summary.plan;
+            plan.seconds_per_step = per_step;
+            plan.estimated_shear_seconds = per_step * plan.shear_steps as f64;
+            plan.estimated_seconds_max =
+                per_step * (plan.shear_steps + plan.consolidation_steps_max) as f64;
+            observer.plan(plan);
+            result = &mut summary.consolidation;
+        }
+        if steps.is_multiple_of(test.check_interval) || steps >= planned {
+            let m = run.measurement();
+            let point = CurvePoint::from_measurement(&m, &prepared_state);
+            log.push(&point).map_err(io(&log_path))?;
+            run.check_escape("consolidation")?;
+            let e = run.model.sim.energy();
+            let stored = e.strain + e.other_potential;
+            result.stress_ratio = point.sigma_a / run.sigma_0;
+            result.unbalanced_force = m.unbalanced_force;
+            result.kinetic_ratio = if stored > 0.0 {
+                e.kinetic / stored
+            } else {
+                f64::INFINITY
+            };
+            let (t_prev, v_prev) = last_volume;
+            let elapsed = (m.time - t_prev).max(f64::MIN_POSITIVE);
+            result.volume_rate = (m.volume / v_prev).ln().abs() / elapsed / strain_rate;
+            last_volume = (m.time, m.volume);
+            result.reached = run.model.sim.time - t_start >= ramp_time
+                && result.volume_rate <= test.volume_rate
+                && (result.stress_ratio - 1.0).abs() <= test.stress_tolerance
+                && result.unbalanced_force <= test.unbalanced_force
+                && result.kinetic_ratio <= test.kinetic_ratio;
+            let ok = observer.progress(&TestStatus {
+                phase: TestPhase::Consolidation,
+                steps,
+                planned_steps: planned,
+                eps_a: 0.0,
+                stress_ratio: result.stress_ratio,
+                eta: point.eta,
+            });
+            if result.reached {
+                break;
+            }
+            if stop(ok) {
+                result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+                return Ok(false);
+            }
+            if steps >= planned {
+                result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+                return Err(TriaxialError::Test {
+                    phase: "consolidation",
+                    message: format!(
+                        "no equilibrium after {steps} steps ({:e} s): axial stress {:.4} x \
+                         sigma_0 (tolerance {}), unbalanced force {:.3e} (limit {}), kinetic \
+                         ratio {:.3e} (limit {}), volume rate {:.3e} (limit {}); raise \
+                         test.consolidation_time or relax the limits",
+                        steps as f64 * run.model.sim.dt,
+                        result.stress_ratio,
+                        test.stress_tolerance,
+                        result.unbalanced_force,
+                        test.unbalanced_force,
+                        result.kinetic_ratio,
+                        test.kinetic_ratio,
+                        result.volume_rate,
+                        test.volume_rate
+                    ),
+                });
+            }
+        } else if steps.is_multiple_of(PROGRESS_STEPS) && stop(true) {
+            result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+            return Ok(false);
+        }
+    }
+    result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+    drop(log);
+
+    // ---- Step 2: shear at constant velocity ----
+    run.model.set_top_velocity(-velocity)?;
+    let reference = Reference {
+        h0: run.model.height(),
+        v0: run.model.volume(),
+        sigma_0: run.sigma_0,
+    };
+    let wall = Instant::now();
+    let cpu = cpu_now();
+    let planned = summary.plan.shear_steps;
+    observer.phase(TestPhase::Shear, planned);
+    let curve_path = dir.join("curve.csv");
+    let mut curve = CurveWriter::new(&curve_path).map_err(io(&curve_path))?;
+    summary.outputs.push("curve.csv".into());
+    let start = run.measurement();
+    let first = CurvePoint::from_measurement(&start, &reference);
+    curve.push(&first).map_err(io(&curve_path))?;
+    points.push(first);
+    let mut tracker = PeakTracker::new();
+    tracker.observe(first.eta);
+    *peak = run.snapshot();
+    summary.peak_snapshot_eps_a = Some(first.eps_a);
+    let mut next_output = test.output_strain;
+    let mut steps = 0u64;
+    let t0 = run.model.sim.time;
+    let mut completed = true;
+    // Errors leave the loop with the cost of the steps taken recorded.
+    let outcome: Result<(), TriaxialError> = loop {
+        if let Err(e) = run.model.sim.advance() {
+            break Err(solver("shear")(e));
+        }
+        steps += 1;
+        let eps_a = crate::measure::axial_strain(reference.h0, run.model.height());
+        let done = eps_a >= test.target_strain;
+        if eps_a >= next_output || done {
+            let m = run.measurement();
+            let point = CurvePoint::from_measurement(&m, &reference);
+            if let Err(e) = curve.push(&point) {
+                break Err(io(&curve_path)(e));
+            }
+            points.push(point);
+            if tracker.observe(point.eta) {
+                *peak = run.snapshot();
+                summary.peak_snapshot_eps_a = Some(point.eps_a);
+            }
+            if let Err(e) = run.check_escape("shear") {
+                break Err(e);
+            }
+            if points.len().is_multiple_of(ROWS_PER_FRAME)
+                && let Err(e) = run.frame()
+            {
+                break Err(e);
+            }
+            while next_output <= eps_a {
+                next_output += test.output_strain;
+            }
+            let ok = observer.progress(&TestStatus {
+                phase: TestPhase::Shear,
+                steps,
+                planned_steps: planned,
+                eps_a,
+                stress_ratio: point.sigma_a / run.sigma_0,
+                eta: point.eta,
+            });
+            if done {
+                break Ok(());
+            }
+            if stop(ok) {
+                completed = false;
+                break Ok(());
+            }
+        } else if steps.is_multiple_of(PROGRESS_STEPS) {
+            let ok = observer.progress(&TestStatus {
+                phase: TestPhase::Shear,
+                steps,
+                planned_steps: planned,
+                eps_a,
+                stress_ratio: f64::NAN,
+                eta: points.last().map_or(f64::NAN, |p| p.eta),
+            });
+            if stop(ok) {
+                completed = false;
+                break Ok(());
+            }
+        }
+    };
+    summary.shear = cost(steps, run.model.sim.time - t0, wall, cpu);
+    outcome?;
+    if completed {
+        run.frame()?;
+    }
+    Ok(completed)
+}
+
+/// Writes the summary, the plots and the peak snapshot.
+fn finish(
+    run: &Run<'_>,
+    summary: &mut TestSummary,
+    points: &[CurvePoint],
+    peak: Option<&(String, String)>,
+) -> Result<(), TriaxialError> {
+    let dir = &run.options.out_dir;
+    summary.curve = summarize(points, run.prepared.spec.test.residual_window);
+    if let Some((nodes, pairs)) = peak {
+        write_atomically(&dir.join("contacts_peak.csv"), nodes).map_err(out)?;
+        write_atomically(&dir.join("pairs_peak.csv"), pairs).map_err(out)?;
+        summary.outputs.push("contacts_peak.csv".into());
+        summary.outputs.push("pairs_peak.csv".into());
+    }
+    let name = &run.prepared.spec.name;
+    let series = [CurveSeries {
+        label: name,
+        points,
+    }];
+    for (file, kind, title) in [
+        ("eta.svg", CurvePlot::StressRatio, "stress ratio"),
+        (
+            "eps_v.svg",
+            CurvePlot::VolumetricStrain,
+            "volumetric strain",
+        ),
+    ] {
+        let path = dir.join(file);
+        plot_curves(&path, kind, &format!("{name}: {title}"), &series).map_err(|e| {
+            TriaxialError::Test {
+                phase: "output",
+                message: e.to_string(),
+            }
+        })?;
+        summary.outputs.push(file.into());
+    }
+    if run.vtk.is_some() {
+        summary.outputs.push("frames.pvd".into());
+        summary.outputs.push("boundary.pvd".into());
+    }
+    summary.outputs.push("summary.json".into());
+    let text = serde_json::to_string_pretty(summary).map_err(|e| TriaxialError::Test {
+        phase: "output",
+        message: format!("summary.json: {e}"),
+    })?;
+    write_atomically(&dir.join("summary.json"), &(text + "\n")).map_err(out)
+}

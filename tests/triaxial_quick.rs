@@ -1,0 +1,125 @@
+//! The triaxial quick test end to end (issue acceptance): prepare the quick specimen,
+//! stop one test early (interrupted), run one to its target strain, and check the
+//! outputs, the consolidation, the curve and the contact micro-analysis of the peak.
+//!
+//! About two minutes with the workspace's dev profile on two cores: the longest test of
+//! the workspace, and the only one that runs the whole main job.
+
+use fdem_micro::{AnalysisOptions, SnapshotChoice, analyse, locate_snapshot};
+use fdem_triaxial::{
+    Silent, TestObserver, TestOptions, TestPhase, TestStatus, prepare, quick_spec, read_curve,
+    run_test,
+};
+use std::sync::atomic::AtomicBool;
+
+/// Stops the test at the first progress report of the shear.
+struct StopInShear;
+
+impl TestObserver for StopInShear {
+    fn progress(&mut self, status: &TestStatus) -> bool {
+        status.phase != TestPhase::Shear
+    }
+}
+
+fn json(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn quick_triaxial_test_runs_end_to_end() {
+    let spec = quick_spec();
+    let prepared = prepare(&spec, &mut Silent).expect("the quick specimen prepares");
+    assert!(
+        prepared.report.checks.passed(),
+        "{:?}",
+        prepared.report.checks
+    );
+    let never = AtomicBool::new(false);
+
+    // An interrupted run keeps complete rows and says so.
+    let dir = tempfile::tempdir().unwrap();
+    let options = TestOptions {
+        out_dir: dir.path().join("interrupted"),
+        vtk: false,
+        dt: None,
+    };
+    let summary = run_test(&prepared, &options, &mut StopInShear, &never).unwrap();
+    assert_eq!(summary.status, "interrupted");
+    let s = json(&options.out_dir.join("summary.json"));
+    assert_eq!(s["status"], "interrupted");
+    let rows = read_curve(options.out_dir.join("curve.csv")).expect("complete rows");
+    assert!(!rows.is_empty());
+
+    // The full run.
+    let options = TestOptions {
+        out_dir: dir.path().join("quick"),
+        vtk: true,
+        dt: None,
+    };
+    let summary =
+        run_test(&prepared, &options, &mut fdem_triaxial::SilentTest, &never).expect("test runs");
+    assert_eq!(summary.status, "completed", "{:?}", summary.failure);
+    let out = &options.out_dir;
+    for file in [
+        "curve.csv",
+        "consolidation.csv",
+        "summary.json",
+        "contacts_peak.csv",
+        "pairs_peak.csv",
+        "eta.svg",
+        "eps_v.svg",
+        "frames.pvd",
+        "boundary.pvd",
+    ] {
+        assert!(out.join(file).exists(), "{file} missing");
+    }
+
+    // Step 1: axial stress = sigma_0 within 2 %, nothing outside the membrane.
+    let c = &summary.consolidation;
+    assert!(c.reached);
+    assert!((c.stress_ratio - 1.0).abs() < 0.02, "{}", c.stress_ratio);
+    assert_eq!(summary.particles_outside, 0);
+    assert!(summary.escape_checks > 10);
+
+    // Step 2: the curve.
+    let curve = read_curve(out.join("curve.csv")).unwrap();
+    let last = curve.last().unwrap();
+    assert!(
+        last.eps_a >= spec.test.target_strain - 1e-9,
+        "{}",
+        last.eps_a
+    );
+    let peak = summary.curve.as_ref().unwrap();
+    assert!(
+        peak.peak_eta > 0.3 && peak.peak_eta < 3.0,
+        "peak eta {}",
+        peak.peak_eta
+    );
+    // Contractive start: eps_v > 0 at the first rows of shear.
+    assert!(
+        curve[1].eps_v > 0.0 && curve[2].eps_v > 0.0,
+        "{:?}",
+        &curve[..3]
+    );
+    // eta from eqs 14-15 on the row's own columns.
+    let sigma = last.axial_force * last.height / last.volume;
+    assert!((sigma - last.sigma_a).abs() <= 1e-9 * sigma.abs());
+
+    // The peak snapshot clusters into particle contacts that match the ground truth.
+    let files = locate_snapshot(out, SnapshotChoice::Peak).unwrap();
+    let analysis = analyse(&files, &AnalysisOptions::default()).unwrap();
+    let v = analysis
+        .validation
+        .expect("pairs_peak.csv is the ground truth");
+    let recall = v.body_pairs.recall.unwrap();
+    let error = v.body_pairs.max_force_error.unwrap();
+    eprintln!(
+        "quick: peak eta {:.3} at {:.2} %, recall {recall:.4}, max force error {error:.2e}, \
+         {} significant pairs",
+        peak.peak_eta,
+        100.0 * peak.eps_a_at_peak,
+        v.body_pairs.significant_truth_pairs
+    );
+    assert!(recall >= 0.95, "recall {recall}");
+    assert!(error < 0.05, "force error {error}");
+}
