@@ -112,10 +112,23 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
         args.extend(["--out".to_string(), dir.to_string()]);
     }
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    eprintln!("building fdem (release) and running: fdem triaxial {}", args.join(" "));
+    eprintln!(
+        "building fdem (release) and running: fdem triaxial {}",
+        args.join(" ")
+    );
     let status = std::process::Command::new(cargo)
         .current_dir(workspace_root())
-        .args(["run", "--release", "--locked", "--quiet", "-p", "fdem-cli", "--bin", "fdem", "--"])
+        .args([
+            "run",
+            "--release",
+            "--locked",
+            "--quiet",
+            "-p",
+            "fdem-cli",
+            "--bin",
+            "fdem",
+            "--",
+        ])
         .arg("triaxial")
         .args(&args)
         .status()

@@ -210,7 +210,8 @@ fn default_loading_velocity_keeps_the_coarsest_member_at_inertial_number_1e_3() 
 
 #[test]
 fn bad_test_settings_are_refused_with_one_line_naming_the_key() {
-    let base = "diameter = 0.3\nheight = 0.6\ngradation = [{ size = 0.015, mass_fraction = 1.0 }]\n";
+    let base =
+        "diameter = 0.3\nheight = 0.6\ngradation = [{ size = 0.015, mass_fraction = 1.0 }]\n";
     for (extra, key) in [
         ("confining_pressure = -1e5\n", "confining_pressure"),
         ("[test]\ntarget_strain = 0.7\n", "test.target_strain"),
@@ -219,12 +220,20 @@ fn bad_test_settings_are_refused_with_one_line_naming_the_key() {
         ("[test]\ninertial_number = 0\n", "test.inertial_number"),
         ("[test]\nservo_band = 2\n", "test.servo_band"),
         ("[test]\nunknown = 1\n", "test"),
-        ("[membrane]\npoisson_ratio = 0.6\n", "membrane.poisson_ratio"),
-        ("[membrane]\ndivisions_around = 0\n", "membrane.divisions_around"),
+        (
+            "[membrane]\npoisson_ratio = 0.6\n",
+            "membrane.poisson_ratio",
+        ),
+        (
+            "[membrane]\ndivisions_around = 0\n",
+            "membrane.divisions_around",
+        ),
         ("[membrane]\ndamping = -1\n", "membrane.damping"),
     ] {
         let text = format!("{base}{extra}");
-        let e = SpecimenSpec::from_toml_str(&text, "t.toml").unwrap_err().to_string();
+        let e = SpecimenSpec::from_toml_str(&text, "t.toml")
+            .unwrap_err()
+            .to_string();
         assert!(!e.contains('\n'), "{e}");
         assert!(e.contains(key), "{key}: {e}");
     }
