@@ -288,9 +288,17 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
 fn report(s: &fdem_triaxial::TestSummary, out: &Path, seconds: f64) {
     let c = &s.consolidation;
     println!(
-        "{}: consolidated to sigma_a/sigma_0 = {:.4} in {} steps (unbalanced {:.2e}, kinetic \
-         ratio {:.2e}); sheared {} steps",
-        s.test, c.stress_ratio, c.cost.steps, c.unbalanced_force, c.kinetic_ratio, s.shear.steps
+        "{} ({}): consolidation {} after {} steps: sigma_a/sigma_0 = {:.4}, unbalanced {:.2e}, \
+         kinetic ratio {:.2e}, volume rate {:.2e}; sheared {} steps",
+        s.test,
+        s.status,
+        if c.reached { "reached" } else { "not reached" },
+        c.cost.steps,
+        c.stress_ratio,
+        c.unbalanced_force,
+        c.kinetic_ratio,
+        c.volume_rate,
+        s.shear.steps
     );
     if let Some(curve) = &s.curve {
         println!(
