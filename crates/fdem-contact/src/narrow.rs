@@ -81,32 +81,9 @@ fn clamp_weights(w: [f64; 3]) -> [f64; 3] {
 /// particle vertex sits on the particle side of one face and far behind a steep neighbour.
 #[inline]
 pub fn front_distance(node: [f64; 3], face: [[f64; 3]; 3], limit: f64) -> Option<f64> {
+    // In front of (a, b, c) is behind the mirrored face (a, c, b), same foot and distance.
     let [a, b, c] = face;
-    let e1 = sub(b, a);
-    let e2 = sub(c, a);
-    let n = cross(e1, e2);
-    let p = sub(node, a);
-    let s_scaled = dot(p, n);
-    if s_scaled.is_nan() || s_scaled < 0.0 {
-        return None;
-    }
-    let nn = norm2(n);
-    if nn <= 0.0 || nn.is_nan() {
-        return None;
-    }
-    let distance = s_scaled / nn.sqrt();
-    if distance > limit {
-        return None;
-    }
-    let inv_nn = 1.0 / nn;
-    let wb = dot(cross(p, e2), n) * inv_nn;
-    let wc = dot(cross(e1, p), n) * inv_nn;
-    let wa = 1.0 - wb - wc;
-    let tol = -BARYCENTRIC_TOLERANCE;
-    if wa < tol || wb < tol || wc < tol {
-        return None;
-    }
-    Some(distance)
+    project_hand(node, [a, c, b], limit).map(|hit| hit.depth)
 }
 
 /// Node behind a face's plane whose foot falls outside the triangle: the closest point of

@@ -598,7 +598,7 @@ impl TestModel {
         Ok(())
     }
 
-    /// Particles whose centroid is outside the closed surface of membrane and platens.
+    /// Particles whose centre of mass is outside the closed surface of membrane and platens.
     pub fn particles_outside(&self) -> Vec<usize> {
         let (bottom, top) = (
             self.platen_z(TEST_WALL_BOTTOM),
@@ -610,14 +610,8 @@ impl TestModel {
             .iter()
             .enumerate()
             .filter(|(_, b)| {
-                let n = b.nodes.len().max(1) as f64;
-                let mut c = [0.0; 3];
-                for i in b.nodes.clone() {
-                    for k in 0..3 {
-                        c[k] += x[i][k] / n;
-                    }
-                }
-                !self.membrane.contains(x, bottom, top, c)
+                let centroid = b.motion(&self.sim.state).centroid;
+                !self.membrane.contains(x, bottom, top, centroid)
             })
             .map(|(id, _)| id)
             .collect()
@@ -626,11 +620,5 @@ impl TestModel {
     /// The membrane's contact body id.
     pub fn membrane_body(&self) -> u32 {
         self.particles as u32
-    }
-
-    /// Kinetic energy of the particles (J).
-    pub fn particle_kinetic_energy(&self) -> f64 {
-        let end = self.sim.bodies.last().map_or(0, |b| b.nodes.end);
-        self.sim.state.kinetic_energy(0..end)
     }
 }

@@ -67,6 +67,18 @@ pub struct SpecimenArgs {
     threads: Option<usize>,
 }
 
+/// A progress bar over `planned_steps` steps of a phase, with elapsed time and estimate.
+pub fn phase_bar(planned_steps: u64, prefix: &'static str) -> ProgressBar {
+    let bar = ProgressBar::new(planned_steps);
+    if let Ok(style) = ProgressStyle::with_template(
+        "{prefix:>13} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
+    ) {
+        bar.set_style(style);
+    }
+    bar.set_prefix(prefix);
+    bar
+}
+
 /// Progress of a preparation on stderr: one line per phase, and a bar with an estimate on
 /// a terminal.
 pub struct PreparationProgress {
@@ -102,14 +114,7 @@ impl Observer for PreparationProgress {
             Phase::Settle => eprintln!("settle: at most {planned_steps} steps"),
         }
         if self.terminal && planned_steps > 0 {
-            let bar = ProgressBar::new(planned_steps);
-            if let Ok(style) = ProgressStyle::with_template(
-                "{prefix:>8} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
-            ) {
-                bar.set_style(style);
-            }
-            bar.set_prefix(phase.name());
-            self.bar = Some(bar);
+            self.bar = Some(phase_bar(planned_steps, phase.name()));
         }
     }
 

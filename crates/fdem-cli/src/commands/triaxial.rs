@@ -1,14 +1,14 @@
 //! `fdem triaxial`: the numerical triaxial test end to end (docs/TRIAXIAL.md): prepare
 //! the specimen (or reuse a prepared one), consolidate, shear, write the outputs.
 
-use crate::commands::specimen::{OrderArg, PreparationProgress};
+use crate::commands::specimen::{OrderArg, PreparationProgress, phase_bar};
 use anyhow::{Context, bail};
 use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
     PreparedSpecimen, Preset, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
     TestStatus, prepare, quick_spec, run_test, specimen_time_step,
 };
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -123,14 +123,7 @@ impl TestObserver for TestProgress {
         }
         eprintln!("{}: up to {planned_steps} steps", phase.name());
         if self.terminal {
-            let bar = ProgressBar::new(planned_steps);
-            if let Ok(style) = ProgressStyle::with_template(
-                "{prefix:>13} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
-            ) {
-                bar.set_style(style);
-            }
-            bar.set_prefix(phase.name());
-            self.bar = Some(bar);
+            self.bar = Some(phase_bar(planned_steps, phase.name()));
         }
     }
 
