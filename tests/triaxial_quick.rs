@@ -7,17 +7,19 @@
 
 use fdem_micro::{AnalysisOptions, SnapshotChoice, analyse, locate_snapshot};
 use fdem_triaxial::{
-    Silent, TestObserver, TestOptions, TestPhase, TestStatus, prepare, quick_spec, read_curve,
-    run_test,
+    Silent, TestModel, TestObserver, TestOptions, TestPhase, TestStatus, prepare, quick_spec,
+    read_curve, run_test,
 };
 use std::sync::atomic::AtomicBool;
 
-/// Stops the test at the first progress report of the shear.
-struct StopInShear;
+/// Stops the test at its second progress report (in consolidation).
+struct StopEarly(u32);
 
-impl TestObserver for StopInShear {
+impl TestObserver for StopEarly {
     fn progress(&mut self, status: &TestStatus) -> bool {
-        status.phase != TestPhase::Shear
+        assert_eq!(status.phase, TestPhase::Consolidation);
+        self.0 += 1;
+        self.0 < 2
     }
 }
 
@@ -36,6 +38,16 @@ fn quick_triaxial_test_runs_end_to_end() {
     );
     let never = AtomicBool::new(false);
 
+    // The test's guards still catch an explicit instability: the same model stepped at
+    // 2.5 times its stable bound stops with an `unstable integration` error (measured:
+    // at step 4, the contact's tunnelling guard, before the energy check's first window).
+    let mut model = TestModel::build(&prepared, None).expect("the test model builds");
+    model.sim.dt = 2.5 * model.sim.bound.dt;
+    let tripped = (1..=4096).find_map(|step| model.sim.advance().err().map(|e| (step, e)));
+    let (step, error) = tripped.expect("an unstable step is caught");
+    eprintln!("unstable step caught at step {step}: {error}");
+    assert!(error.to_string().contains("unstable"), "{error}");
+
     // An interrupted run keeps complete rows and says so.
     let dir = tempfile::tempdir().unwrap();
     let options = TestOptions {
@@ -43,11 +55,11 @@ fn quick_triaxial_test_runs_end_to_end() {
         vtk: false,
         dt: None,
     };
-    let summary = run_test(&prepared, &options, &mut StopInShear, &never).unwrap();
+    let summary = run_test(&prepared, &options, &mut StopEarly(0), &never).unwrap();
     assert_eq!(summary.status, "interrupted");
     let s = json(&options.out_dir.join("summary.json"));
     assert_eq!(s["status"], "interrupted");
-    let rows = read_curve(options.out_dir.join("curve.csv")).expect("complete rows");
+    let rows = read_curve(options.out_dir.join("consolidation.csv")).expect("complete rows");
     assert!(!rows.is_empty());
 
     // The full run.

@@ -1,6 +1,6 @@
 //! Broad phase: a spatial hash over the surface triangles with a Verlet skin.
 //!
-//! Every triangle's bounding box, enlarged by `2 margin` (plus the barycentric tolerance
+//! Every triangle's bounding box, enlarged by `margin + depth limit` (plus the barycentric tolerance
 //! band), is registered in every cell of a uniform grid it overlaps; the cell size is the
 //! largest enlarged box extent, so a box overlaps at most 2 cells per axis. Cells are
 //! numbered densely (`i + nx (j + ny k)`) when the occupied region holds at most 4 cells
@@ -12,9 +12,10 @@
 //! body, triangle).
 //!
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
-//! last build, a node and a triangle that were not candidates are still more than `margin`
-//! apart (each moved less than `margin / 2`), and the depth limit is `margin`, so no
-//! contact can be missed. The model rebuilds as soon as one node has moved farther.
+//! last build, a node and a triangle that were not candidates were more than `margin +
+//! depth limit` apart and still are more than the depth limit apart (each moved less than
+//! `margin / 2`), so no contact within the depth limit can be missed. The model rebuilds
+//! as soon as one node has moved farther.
 
 use rayon::prelude::*;
 
@@ -216,9 +217,9 @@ fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
 }
 
 impl BroadPhase {
-    /// Rebuilds grid and candidates from the current positions. `margin` is the Verlet
-    /// skin; positions must be finite (the model checks them first).
-    pub(crate) fn build(&mut self, positions: &[[f64; 3]], surface: &ContactSurface, margin: f64) {
+    /// Rebuilds grid and candidates from the current positions. `reach` is the Verlet
+    /// skin plus the depth limit; positions must be finite (the model checks them first).
+    pub(crate) fn build(&mut self, positions: &[[f64; 3]], surface: &ContactSurface, reach: f64) {
         let n_surface = surface.surface_nodes.len();
         self.reference.clear();
         self.reference
@@ -237,10 +238,10 @@ impl BroadPhase {
             }
             self.boxes.push(bx);
         }
-        // 2 margin: both the node and the face may move margin/2 before the next build, and
-        // the node may sit up to the depth limit (= margin) behind the face; the tolerance
+        // margin + depth limit: both the node and the face may move margin/2 before the next
+        // build, and the node may sit up to the depth limit behind the face; the tolerance
         // band lets a foot fall slightly outside the triangle.
-        let e = 2.0 * margin + 2.0 * BARYCENTRIC_TOLERANCE * largest;
+        let e = reach + 2.0 * BARYCENTRIC_TOLERANCE * largest;
         self.enlargement = e;
         for bx in &mut self.boxes {
             for d in 0..3 {

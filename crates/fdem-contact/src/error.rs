@@ -164,9 +164,9 @@ pub enum ContactError {
     /// the contact.
     #[error(
         "surface node {node} (body {body}) penetrates {counterpart} by {depth:.3e} m, more \
-         than half of the depth limit {depth_limit:.3e} m (= the contact margin) beyond which \
-         a contact is no longer detected; enlarge the margin, raise the normal penalty, \
-         reduce the loading, or remove initial overlaps"
+         than half of the depth limit {depth_limit:.3e} m beyond which a contact is no longer \
+         detected; raise the depth limit (contact.depth_limit, or the margin it defaults \
+         to), raise the normal penalty, reduce the loading, or remove initial overlaps"
     )]
     PenetrationTooDeep {
         /// Global node id.

@@ -32,14 +32,15 @@
 //!
 //! # Choices (documented assumptions)
 //! - Control areas `A` are fixed at set-up from the reference configuration.
-//! - One margin `delta` (m) sets the Verlet skin (rebuild when a node moved `delta / 2`),
-//!   the depth limit of the narrow phase (a node more than `delta` behind a face is not in
-//!   contact with it), and the guards: [`ContactError::Tunnelling`] when a node moves more
-//!   than `delta / 2` relative to a nearby face or wall in one step,
-//!   [`ContactError::PenetrationTooDeep`] when a node is more than `delta / 2` behind a
-//!   face (so a contact can never silently pass the depth limit). Default:
+//! - A margin `delta` (m) sets the Verlet skin (rebuild when a node moved `delta / 2`)
+//!   and the tunnelling guard: [`ContactError::Tunnelling`] when a node moves more than
+//!   `delta / 2` relative to a nearby face or wall in one step. Default:
 //!   [`ContactModel::suggested_margin`], a tenth of the shortest surface edge.
-//! - Broad phase: triangle boxes enlarged by `2 delta` (plus the tolerance band) are
+//! - A depth limit `D` (m; `delta` unless [`ContactModel::set_depth_limit`] changes it):
+//!   a node more than `D` behind a face is not in contact with it, and
+//!   [`ContactError::PenetrationTooDeep`] fires when a node is more than `D / 2` behind a
+//!   face (so a contact can never silently pass the depth limit).
+//! - Broad phase: triangle boxes enlarged by `delta + D` (plus the tolerance band) are
 //!   binned in a uniform grid whose cell is the largest enlarged box extent (at most
 //!   8 cells per triangle); cells are numbered densely when the occupied region is
 //!   compact (up to 4 cells per triangle) and through a seedless hash table otherwise.

@@ -21,6 +21,23 @@ pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
 /// fraction of the depth limit beyond which it reports [`ContactError::PenetrationTooDeep`].
 pub const TUNNELLING_FRACTION: f64 = 0.5;
 
+/// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
+const PLANE_SLACK: f64 = 1e-9;
+
+/// Unit normal and offset `[n, n . a]` of a face's plane; zeros for a degenerate face
+/// (every node is then at signed distance 0 and reaches the exact tests, which reject it).
+fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
+    let [a, b, c] = face;
+    let n = crate::vec3::cross(sub(b, a), sub(c, a));
+    let len = norm(n);
+    if len > 0.0 && len.is_finite() {
+        let u = scale(n, 1.0 / len);
+        [u[0], u[1], u[2], crate::vec3::dot(u, a)]
+    } else {
+        [0.0; 4]
+    }
+}
+
 /// What a surface node touches: a face of another body or a rigid wall.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -86,6 +103,13 @@ pub struct NodeContact {
     pub tangential_displacement: [f64; 3],
     /// Whether the contact slides (`|F_s| = mu F_n`).
     pub sliding: bool,
+    /// The non-elastic part of the force (dashpots, and the friction cap's cut) and the
+    /// relative velocity it was evaluated with, for the dissipation bookkeeping of the
+    /// next evaluation (see `Ctx::push`).
+    #[serde(skip)]
+    damping_force: [f64; 3],
+    #[serde(skip)]
+    relative_velocity: [f64; 3],
 }
 
 impl NodeContact {
@@ -140,7 +164,7 @@ pub struct ContactReport {
     pub rebuilt: bool,
     /// Candidate (surface node, triangle) pairs of the current broad phase.
     pub candidate_pairs: usize,
-    /// Node-to-sheet hits deeper than the tunnelling threshold that were discarded as fold
+    /// Node-to-sheet hits deeper than the sheets' fold depth that were discarded as fold
     /// artefacts (see [`ContactModel::set_sheet_bodies`]).
     pub discarded_sheet_hits: usize,
 }
@@ -186,6 +210,8 @@ struct Sums {
 #[derive(Clone, Debug, Default)]
 struct ChunkScratch {
     contacts: Vec<NodeContact>,
+    /// Signed distances of the current node to its candidates' planes.
+    signed: Vec<f64>,
     sums: Sums,
     error: Option<ContactError>,
 }
@@ -239,6 +265,7 @@ pub struct ContactModel {
     walls: Vec<Wall>,
     n_nodes: usize,
     margin: f64,
+    depth_limit: f64,
     kernel: ProjectionKernel,
     coefficients: Vec<NodeCoefficients>,
     masses: Vec<f64>,
@@ -249,9 +276,13 @@ pub struct ContactModel {
     chunks: Vec<ChunkScratch>,
     wall_shapes: Vec<WallShape>,
     wall_forces: Vec<[f64; 3]>,
+    /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
+    planes: Vec<[f64; 4]>,
     report: ContactReport,
     /// Per body: [`EDGE_TEST`] and [`SHEET`] flags (`set_sheet_bodies`).
     sheets: Vec<u8>,
+    /// Sheet hits deeper than this are discarded as fold artefacts (m).
+    sheet_fold_depth: f64,
 }
 
 impl ContactModel {
@@ -260,8 +291,9 @@ impl ContactModel {
     /// - `masses`: lumped mass of every global node (kg); its length fixes the number of
     ///   nodes that positions, velocities and forces must have. Surface-node masses must be
     ///   finite and > 0; they set the dashpots `c = 2 beta sqrt(m k)` (eq 3).
-    /// - `margin` (m): the Verlet skin of the broad phase and the depth limit of the narrow
-    ///   phase; see [`ContactModel::suggested_margin`].
+    /// - `margin` (m): the Verlet skin of the broad phase, the tunnelling scale and the
+    ///   initial depth limit of the narrow phase; see [`ContactModel::suggested_margin`]
+    ///   and [`ContactModel::set_depth_limit`].
     ///
     /// Stiffnesses use the control areas of `surface`, fixed from the reference
     /// configuration (`k_n = p_n A`, eq 2).
@@ -329,6 +361,7 @@ impl ContactModel {
             params,
             n_nodes,
             margin,
+            depth_limit: margin,
             kernel: ProjectionKernel::default(),
             coefficients,
             masses: node_masses,
@@ -338,11 +371,13 @@ impl ContactModel {
             contacts: Vec::new(),
             chunks: vec![ChunkScratch::default(); n_chunks],
             wall_shapes: Vec::with_capacity(walls.len()),
+            planes: Vec::new(),
             wall_forces: vec![[0.0; 3]; walls.len()],
             report: ContactReport::default(),
             walls,
             surface,
             sheets: Vec::new(),
+            sheet_fold_depth: f64::INFINITY,
         })
     }
 
@@ -375,13 +410,25 @@ impl ContactModel {
     /// face of a sheet covers is also tested against the sheet's edges and vertices
     /// ([`crate::narrow::project_to_edge`]), which closes the holes node-to-face contact
     /// has at the sheet's convex ridges; the closest-face rule keeps nodes that a nearer
-    /// face has in front out of contact. A node found behind a sheet deeper than the
-    /// tunnelling threshold (half the margin) is not an error but a fold artefact of a
-    /// sheet draped over angular particles: the hit is discarded and counted in
+    /// face has in front out of contact. A node found behind a sheet deeper than
+    /// `fold_depth` (m) is not an error but a fold artefact of a sheet draped over angular
+    /// particles: the hit is discarded and counted in
     /// [`ContactReport::discarded_sheet_hits`] (the caller checks containment by other
     /// means, as the triaxial test does every output).
-    pub fn set_sheet_bodies(&mut self, bodies: &[u32]) {
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidMargin`] for a `fold_depth` that is not finite and > 0.
+    pub fn set_sheet_bodies(
+        &mut self,
+        bodies: &[u32],
+        fold_depth: f64,
+    ) -> Result<(), ContactError> {
+        if !(fold_depth.is_finite() && fold_depth > 0.0) {
+            return Err(ContactError::InvalidMargin { margin: fold_depth });
+        }
+        self.sheet_fold_depth = fold_depth;
         self.flag_bodies(bodies, EDGE_TEST | SHEET);
+        Ok(())
     }
 
     fn flag_bodies(&mut self, bodies: &[u32], flag: u8) {
@@ -451,10 +498,35 @@ impl ContactModel {
         self.margin
     }
 
-    /// The depth limit (m): a node deeper than this behind a face is not in contact with it
-    /// (it equals the margin).
+    /// The depth limit (m): the narrow phase looks this far behind a face; a contact
+    /// deeper than half of it is refused ([`ContactError::PenetrationTooDeep`]). It equals
+    /// the margin unless [`ContactModel::set_depth_limit`] changed it.
     pub fn depth_limit(&self) -> f64 {
-        self.margin
+        self.depth_limit
+    }
+
+    /// Sets the depth limit (m) independently of the Verlet skin.
+    ///
+    /// The margin bounds how far nodes may move between broad-phase builds and per step;
+    /// the depth limit bounds how deep a contact may become (half of it) and how far
+    /// behind a face the narrow phase looks (all of it). Stiff contacts at particle
+    /// vertices under high stress can press deeper than half a small margin while moving
+    /// slowly: raising the depth limit lets them, and costs only a larger candidate box
+    /// (`margin + depth_limit` instead of `2 margin`). It must stay well below the
+    /// particles' thickness, so that the nearest face behind a node is the one it
+    /// crossed. Sheets ([`ContactModel::set_sheet_bodies`]) have a fold depth of their own.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidMargin`] for a depth that is not finite and > 0.
+    pub fn set_depth_limit(&mut self, depth_limit: f64) -> Result<(), ContactError> {
+        if !(depth_limit.is_finite() && depth_limit > 0.0) {
+            return Err(ContactError::InvalidMargin {
+                margin: depth_limit,
+            });
+        }
+        self.depth_limit = depth_limit;
+        self.rebuild_requested = true;
+        Ok(())
     }
 
     /// Spring and dashpot coefficients of surface node `k` (index into
@@ -497,8 +569,8 @@ impl ContactModel {
         self.broad.builds
     }
 
-    /// Enlargement of the triangle boxes at the last build (m): `2 margin` plus the
-    /// tolerance band.
+    /// Enlargement of the triangle boxes at the last build (m): `margin + depth_limit`
+    /// plus the tolerance band.
     pub fn candidate_enlargement(&self) -> f64 {
         self.broad.enlargement
     }
@@ -665,7 +737,7 @@ impl ContactModel {
     /// [`ContactError::NonFinite`] for a diverged state, [`ContactError::Tunnelling`] when
     /// a node moves more than half the margin relative to nearby faces or walls in one
     /// step, [`ContactError::PenetrationTooDeep`] when a node is deeper than half the
-    /// depth limit.
+    /// depth limit ([`ContactModel::depth_limit`]).
     pub fn add_forces(
         &mut self,
         positions: &[[f64; 3]],
@@ -723,7 +795,8 @@ impl ContactModel {
         }
         let rebuild = self.rebuild_requested || !self.broad.built || scan.max_drift2 > half * half;
         if rebuild {
-            self.broad.build(positions, &self.surface, margin);
+            self.broad
+                .build(positions, &self.surface, margin + self.depth_limit);
             self.rebuild_requested = false;
         }
         let check_faces = 2.0 * v_max * dt > half;
@@ -736,6 +809,12 @@ impl ContactModel {
         self.wall_shapes.clear();
         self.wall_shapes
             .extend(self.walls.iter().map(|w| w.shape_at(time)));
+        self.planes.resize(self.surface.triangles.len(), [0.0; 4]);
+        self.planes
+            .par_iter_mut()
+            .zip(self.surface.triangles.par_iter())
+            .with_min_len(CHUNK)
+            .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes.
         let ctx = Ctx {
@@ -744,15 +823,18 @@ impl ContactModel {
             coefficients: &self.coefficients,
             walls: &self.walls,
             wall_shapes: &self.wall_shapes,
+            planes: &self.planes,
             previous: &self.contacts,
             kernel: self.kernel,
             positions,
             velocities,
             dt,
             margin,
+            depth_limit: self.depth_limit,
             check_faces,
             check_walls,
             sheets: &self.sheets,
+            sheet_fold_depth: self.sheet_fold_depth,
         };
         self.chunks
             .par_iter_mut()
@@ -829,31 +911,31 @@ struct Ctx<'a> {
     coefficients: &'a [NodeCoefficients],
     walls: &'a [Wall],
     wall_shapes: &'a [WallShape],
+    planes: &'a [[f64; 4]],
     previous: &'a [NodeContact],
     kernel: ProjectionKernel,
     positions: &'a [[f64; 3]],
     velocities: &'a [[f64; 3]],
     dt: f64,
     margin: f64,
+    depth_limit: f64,
     check_faces: bool,
     check_walls: bool,
     sheets: &'a [u8],
+    sheet_fold_depth: f64,
 }
 
 impl Ctx<'_> {
-    /// Tangential history of the contact `key` from the previous evaluation. Keys arrive in
+    /// The contact `key` of the previous evaluation, if there was one. Keys arrive in
     /// increasing order within a chunk, and `previous` is sorted by key, so a cursor that
     /// only moves forward finds them (a merge, not a search per contact).
     #[inline]
-    fn history(&self, key: u64, cursor: &mut usize) -> [f64; 3] {
+    fn previous(&self, key: u64, cursor: &mut usize) -> Option<&NodeContact> {
         let previous = self.previous;
         while *cursor < previous.len() && previous[*cursor].key < key {
             *cursor += 1;
         }
-        match previous.get(*cursor) {
-            Some(c) if c.key == key => c.tangential_displacement,
-            _ => [0.0; 3],
-        }
+        previous.get(*cursor).filter(|c| c.key == key)
     }
 
     fn tunnelling(&self, k: usize, relative_to: Counterpart, displacement: f64) -> ContactError {
@@ -895,9 +977,21 @@ impl Ctx<'_> {
         let body = s.node_body[k];
         let x = self.positions[node];
         let v = self.velocities[node];
-        let depth_limit = self.margin;
+        let depth_limit = self.depth_limit;
         let half = TUNNELLING_FRACTION * self.margin;
         let cands = self.broad.candidates(k);
+        // Signed distances to the candidates' planes (positive in front): a cheap
+        // pre-filter. Every test below is exact on its own; the filter only skips faces
+        // that are beyond its reach by more than `slack`, far above the round-off of
+        // `n . x - n . a` (1e-16 of the coordinates), so the contacts are unchanged.
+        let slack = PLANE_SLACK * depth_limit;
+        let signed = &mut scratch.signed;
+        signed.clear();
+        signed.extend(cands.iter().map(|c| {
+            let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
+            nx * x[0] + ny * x[1] + nz * x[2] - offset
+        }));
+        let signed = std::mem::take(&mut scratch.signed);
         let mut i = 0;
         while i < cands.len() {
             let other = cands[i].body;
@@ -920,6 +1014,10 @@ impl Ctx<'_> {
                         return Err(self.tunnelling(k, Counterpart::Body(other), d));
                     }
                 }
+                let s = signed[i - 1];
+                if s > slack || s < -depth_limit - slack {
+                    continue;
+                }
                 let face = tri.map(|j| self.positions[j]);
                 if let Some(hit) = self.kernel.project(x, face, depth_limit)
                     && best.is_none_or(|(_, _, b)| hit.depth < b.depth)
@@ -935,7 +1033,11 @@ impl Ctx<'_> {
             let is_sheet = flags & SHEET != 0;
             if best.is_none() && flags & EDGE_TEST != 0 {
                 let mut edge: Option<(usize, [usize; 3], crate::FaceHit)> = None;
-                for c in &cands[group..i] {
+                for (c, &s) in cands[group..i].iter().zip(&signed[group..i]) {
+                    // `project_to_edge` needs the node behind the plane within the limit.
+                    if s > slack || s < -depth_limit - slack {
+                        continue;
+                    }
                     let tri = c.nodes.map(|j| j as usize);
                     let face = tri.map(|j| self.positions[j]);
                     if let Some(hit) = crate::narrow::project_to_edge(x, face, depth_limit)
@@ -945,29 +1047,40 @@ impl Ctx<'_> {
                     }
                 }
                 best = edge.filter(|(_, _, hit)| {
-                    !cands[group..i].iter().any(|c| {
-                        let [a, b, cc] = c.nodes.map(|j| self.positions[j as usize]);
-                        let n = crate::vec3::cross(sub(b, a), sub(cc, a));
-                        let len = norm(n);
-                        len > 0.0 && {
-                            let s = crate::vec3::dot(sub(x, a), n) / len;
-                            (0.0..=hit.depth).contains(&s)
-                        }
-                    })
+                    !cands[group..i]
+                        .iter()
+                        .zip(&signed[group..i])
+                        .any(|(c, &s)| {
+                            if s < -slack || s > hit.depth + slack {
+                                return false;
+                            }
+                            let [a, b, cc] = c.nodes.map(|j| self.positions[j as usize]);
+                            let n = crate::vec3::cross(sub(b, a), sub(cc, a));
+                            let len = norm(n);
+                            len > 0.0 && {
+                                let s = crate::vec3::dot(sub(x, a), n) / len;
+                                (0.0..=hit.depth).contains(&s)
+                            }
+                        })
                 });
             }
             // Closest face wins: a face of the same body that covers the node from the
             // front, nearer than the deepest-behind hit, means the node is outside there.
             let best = best.filter(|(_, _, hit)| {
-                !cands[group..i].iter().any(|c| {
-                    let face = c.nodes.map(|j| self.positions[j as usize]);
-                    crate::narrow::front_distance(x, face, hit.depth).is_some()
-                })
+                !cands[group..i]
+                    .iter()
+                    .zip(&signed[group..i])
+                    .any(|(c, &s)| {
+                        s >= -slack && s <= hit.depth + slack && {
+                            let face = c.nodes.map(|j| self.positions[j as usize]);
+                            crate::narrow::front_distance(x, face, hit.depth).is_some()
+                        }
+                    })
             });
-            // A sheet hit deeper than the tunnelling threshold is a fold artefact (the
-            // sheet moves slowly and has the edge test): discard it, count it.
+            // A sheet hit deeper than the fold depth is a fold artefact (the sheet moves
+            // slowly and has the edge test): discard it, count it.
             let best = match best {
-                Some((_, _, hit)) if hit.depth > TUNNELLING_FRACTION * depth_limit && is_sheet => {
+                Some((_, _, hit)) if hit.depth > self.sheet_fold_depth && is_sheet => {
                     scratch.sums.discarded += 1;
                     None
                 }
@@ -1005,6 +1118,7 @@ impl Ctx<'_> {
                 );
             }
         }
+        scratch.signed = signed;
         for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
             let Some((distance, normal)) = wall_distance(shape, x) else {
                 continue;
@@ -1053,7 +1167,8 @@ impl Ctx<'_> {
         relative_velocity: [f64; 3],
     ) {
         let key = history_key(k, counterpart);
-        let mut history = self.history(key, cursor);
+        let previous = self.previous(key, cursor);
+        let mut history = previous.map_or([0.0; 3], |c| c.tangential_displacement);
         let out = evaluate_law(
             &LawInput {
                 normal,
@@ -1064,9 +1179,29 @@ impl Ctx<'_> {
             },
             &mut history,
         );
+        // The dashpot power is evaluated at the half-step velocity v(n+1/2), but velocity
+        // Verlet applies this force over the kicks from v(n+1/2) to v(n+3/2): its true
+        // work is `F . (v(n+1/2) + v(n+3/2)) / 2 dt`. The previous force's missing share,
+        // `-F_nc(n) . (v(n+3/2) - v(n+1/2)) / 2`, is booked now that v(n+3/2) is known
+        // (the dashpots of light nodes have `c dt / m` of order 0.1-1, where the
+        // difference is tens of percent of the dissipation). `F_nc` is the non-elastic
+        // part of the force: the normal dashpot and the tangential force beyond the spring.
+        let damping_force = add(
+            scale(
+                normal,
+                out.normal_magnitude - self.coefficients[k].normal_stiffness * depth,
+            ),
+            add(
+                out.tangential_force,
+                scale(history, self.coefficients[k].tangential_stiffness),
+            ),
+        );
+        let correction = previous.map_or(0.0, |c| {
+            -0.5 * crate::vec3::dot(c.damping_force, sub(relative_velocity, c.relative_velocity))
+        });
         let sums = &mut scratch.sums;
         sums.stored += out.stored_energy;
-        sums.normal_damping += out.normal_damping_power;
+        sums.normal_damping += out.normal_damping_power + correction;
         sums.tangential_damping += out.tangential_damping_power;
         sums.friction += out.friction_dissipation;
         sums.max_depth = sums.max_depth.max(depth);
@@ -1085,6 +1220,8 @@ impl Ctx<'_> {
             tangential_force: out.tangential_force,
             tangential_displacement: history,
             sliding: out.sliding,
+            damping_force,
+            relative_velocity,
         });
     }
 }
@@ -1177,6 +1314,8 @@ impl ContactModel {
                 tangential_force: [0.0; 3],
                 tangential_displacement: displacement,
                 sliding: false,
+                damping_force: [0.0; 3],
+                relative_velocity: [0.0; 3],
             });
         }
         contacts.sort_by_key(|c| c.key);

@@ -85,20 +85,25 @@ proptest! {
         n in 2usize..7,
         level in 0u32..2,
         margin_fraction in 0.01f64..0.05,
+        depth_factor in 1.0f64..3.0,
     ) {
         let d = 0.01;
         let margin = margin_fraction * d;
+        let depth_limit = depth_factor * margin;
         // Surfaces start 1 to 1.9 margins apart: every motion below stays contact-free or
         // shallow, and each new sphere is nearer to its anchor than the boxes' enlargement
-        // (2 margins), so neighbours are always candidates (with gaps up to 3 margins a
-        // lone pair 2.5 margins apart had none: seed 173242).
+        // (at least 2 margins), so neighbours are always candidates (with gaps up to 3
+        // margins a lone pair 2.5 margins apart had none: seed 173242). The depth limit
+        // varies from 1 to 3 margins; the boxes grow to margin + depth limit.
         let assembly = scene(seed, n, level, d, margin..1.9 * margin);
         let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, Some(margin));
+        model.set_depth_limit(depth_limit).unwrap();
         let x0 = assembly.nodes.clone();
         let report = evaluate(&mut model, &x0);
         prop_assert!(report.rebuilt);
         let e = model.candidate_enlargement();
-        prop_assert!(e >= 2.0 * margin && e < 2.0 * margin * 1.001);
+        let reach = margin + depth_limit;
+        prop_assert!(e >= reach && e < reach * 1.001);
         let got: Vec<(usize, usize)> = model.candidate_pairs();
         let set: BTreeSet<_> = got.iter().copied().collect();
         prop_assert_eq!(set.len(), got.len(), "no duplicates");
@@ -107,7 +112,7 @@ proptest! {
 
         // Small motion: every node moves less than margin / 2, no rebuild; the candidate
         // lists still hold every pair that can be in contact now (node within the depth
-        // limit = margin of the current triangle box).
+        // limit of the current triangle box).
         let mut r = rng(seed ^ 0x5eed);
         let x1: Vec<[f64; 3]> = x0
             .iter()
@@ -119,7 +124,7 @@ proptest! {
         let report = evaluate(&mut model, &x1);
         prop_assert!(!report.rebuilt);
         prop_assert_eq!(model.candidate_pairs(), got.clone());
-        let needed = brute_force(&assembly, &x1, margin);
+        let needed = brute_force(&assembly, &x1, depth_limit);
         prop_assert!(needed.is_subset(&set), "a contact-capable pair is missing");
 
         // One body moves rigidly by 0.6 margin: rebuild, and the lists equal brute force

@@ -482,7 +482,110 @@ fn too_deep_penetration_is_an_error_not_a_lost_contact() {
         matches!(err, ContactError::PenetrationTooDeep { .. }),
         "{err}"
     );
-    assert!(err.to_string().contains("enlarge the margin"), "{err}");
+    assert!(err.to_string().contains("raise the depth limit"), "{err}");
+}
+
+#[test]
+fn sheet_hits_deeper_than_the_fold_depth_are_discarded_and_counted() {
+    // Body 1 declared a sheet: body 0's nodes found behind its faces deeper than the fold
+    // depth are discarded (counted, no force); with a fold depth above the penetration
+    // they are contacts as usual.
+    let margin = 1e-4;
+    let pair = overlapping_pair(&mut rng(7), 1, 0.01, 0.3 * margin);
+    let n = pair.n_nodes();
+    let run = |fold_depth: f64| {
+        let mut model = model_for(&pair, ContactParams::default(), vec![], 1e-4, Some(margin));
+        model.set_sheet_bodies(&[1], fold_depth).unwrap();
+        let mut f = vec![[0.0; 3]; n];
+        model
+            .add_forces(&pair.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+            .unwrap()
+    };
+    let deep = run(0.01 * margin);
+    let shallow = run(margin);
+    assert!(deep.discarded_sheet_hits > 0, "{deep:?}");
+    assert_eq!(shallow.discarded_sheet_hits, 0);
+    assert!(shallow.contacts > deep.contacts);
+    let mut model = model_for(&pair, ContactParams::default(), vec![], 1e-4, Some(margin));
+    assert!(model.set_sheet_bodies(&[1], 0.0).is_err());
+    assert!(model.set_sheet_bodies(&[1], f64::NAN).is_err());
+}
+
+#[test]
+fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
+    // The pair of the previous test, 0.7 margin deep: refused with the default depth limit
+    // (= margin), accepted with a depth limit of 2 margins, and found complete: the
+    // candidate boxes grow to `margin + depth_limit`, so every node behind a face within
+    // the limit is a candidate (checked against the brute-force contact count).
+    let margin = 1e-4;
+    let mut r = rng(5);
+    let deep = overlapping_pair(&mut r, 1, 0.01, 0.7 * margin);
+    let mut model = model_for(&deep, ContactParams::default(), vec![], 1e-4, Some(margin));
+    model.set_depth_limit(2.0 * margin).unwrap();
+    assert_eq!(model.depth_limit(), 2.0 * margin);
+    assert_eq!(model.margin(), margin);
+    let n = deep.n_nodes();
+    let mut f = vec![[0.0; 3]; n];
+    let report = model
+        .add_forces(&deep.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap();
+    assert!(report.contacts > 0);
+    assert!(report.max_depth > 0.5 * margin && report.max_depth < margin);
+    assert!(model.candidate_enlargement() >= 3.0 * margin);
+    // A deeper contact than half the new limit is refused again.
+    let deeper = overlapping_pair(&mut rng(5), 1, 0.01, 1.2 * margin);
+    let mut model = model_for(
+        &deeper,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    model.set_depth_limit(2.0 * margin).unwrap();
+    let err = model
+        .add_forces(&deeper.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+        .unwrap_err();
+    assert!(
+        matches!(err, ContactError::PenetrationTooDeep { .. }),
+        "{err}"
+    );
+
+    // A shallow pair: the same forces, bit for bit, with either depth limit.
+    let shallow = overlapping_pair(&mut rng(6), 1, 0.01, 0.2 * margin);
+    let forces = |depth_limit: Option<f64>| {
+        let mut model = model_for(
+            &shallow,
+            ContactParams::default(),
+            vec![],
+            1e-4,
+            Some(margin),
+        );
+        if let Some(d) = depth_limit {
+            model.set_depth_limit(d).unwrap();
+        }
+        let mut f = vec![[0.0; 3]; n];
+        let report = model
+            .add_forces(&shallow.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
+            .unwrap();
+        (report.contacts, f)
+    };
+    let (c1, f1) = forces(None);
+    let (c3, f3) = forces(Some(3.0 * margin));
+    assert!(c1 > 0);
+    assert_eq!(c1, c3);
+    assert_eq!(f1, f3);
+
+    // Bad depth limits are refused.
+    let mut model = model_for(
+        &shallow,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    for bad in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
+        assert!(model.set_depth_limit(bad).is_err());
+    }
 }
 
 #[test]

@@ -94,12 +94,23 @@ impl<'a> Table<'a> {
         let headers: Vec<String> = headers.iter().map(|h| h.trim().to_string()).collect();
         let mut columns = HashMap::new();
         for (i, h) in headers.iter().enumerate() {
-            if columns.insert(h.clone(), i).is_some() {
+            if let Some(first) = columns.insert(h.clone(), i) {
+                // An empty name is located by its position.
+                let column = if h.is_empty() {
+                    format!("#{}", i + 1)
+                } else {
+                    h.clone()
+                };
                 return Err(MicroError::Csv {
                     file: file.to_string(),
                     line: 1,
-                    column: h.clone(),
-                    message: format!("column `{h}` appears twice in the header"),
+                    column,
+                    message: format!(
+                        "column `{h}` appears twice in the header (fields {} and {}); give \
+                         every column its own name",
+                        first + 1,
+                        i + 1
+                    ),
                 });
             }
         }
@@ -567,6 +578,12 @@ mod tests {
         );
         let e = error_of("body,x,y,z,z,fnx,fny,fnz\n");
         assert!(e.contains("appears twice"), "{e}");
+        // Found by the formats property test: two empty names are located by position.
+        let e = error_of("body,x,y,z,fnx,fny,fnz,,\n");
+        assert!(
+            e.starts_with("n.csv:1:#9:") && e.contains("fields 8 and 9"),
+            "{e}"
+        );
         let e = error_of("body,x,y,z,fnx,fny,fnz,sliding\n0,0,0,0,1,1,1,maybe\n");
         assert!(e.starts_with("n.csv:2:sliding:"), "{e}");
     }

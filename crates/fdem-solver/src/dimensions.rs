@@ -250,6 +250,7 @@ fn contact_fields(w: &mut Walker<'_, '_>, c: &mut ContactSection) {
         damping,
         damping_ratio,
         margin,
+        depth_limit,
     } = c;
     w.scalar(
         "normal_penalty",
@@ -262,6 +263,7 @@ fn contact_fields(w: &mut Walker<'_, '_>, c: &mut ContactSection) {
     w.scalar("damping", "damping", Role::Parameter, damping);
     w.scalar("damping_ratio", "damping", Role::Parameter, damping_ratio);
     w.opt("margin", "length", Role::Particle, margin);
+    w.opt("depth_limit", "length", Role::Particle, depth_limit);
 }
 
 fn wall_fields(w: &mut Walker<'_, '_>, wall: &mut WallSection) {

@@ -55,14 +55,22 @@ pub struct ContactSection {
     /// Tangential / normal damping ratio, >= 0; default 1.
     #[serde(default = "default_one", deserialize_with = "non_negative")]
     pub damping_ratio: f64,
-    /// Contact margin (m): Verlet skin, depth limit and tunnelling scale; default a
-    /// quarter of the shortest surface edge of the scene.
+    /// Contact margin (m): Verlet skin and tunnelling scale; default a quarter of the
+    /// shortest surface edge of the scene.
     #[serde(
         default,
         deserialize_with = "positive_opt",
         skip_serializing_if = "Option::is_none"
     )]
     pub margin: Option<f64>,
+    /// Depth limit (m): how far behind a face the narrow phase looks; a contact deeper
+    /// than half of it stops the run. Default: the margin.
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub depth_limit: Option<f64>,
 }
 
 impl Default for ContactSection {
@@ -75,6 +83,7 @@ impl Default for ContactSection {
             damping: default_damping(),
             damping_ratio: 1.0,
             margin: None,
+            depth_limit: None,
         }
     }
 }
@@ -550,13 +559,16 @@ impl Scene {
         }
         let surface = fdem_contact::ContactSurface::from_assembly(assembly)?;
         let margin = self.contact_margin(&surface, &assembly.nodes)?;
-        let model = fdem_contact::ContactModel::new(
+        let mut model = fdem_contact::ContactModel::new(
             self.contact_params(),
             surface,
             self.contact_walls(),
             masses,
             margin,
         )?;
+        if let Some(depth_limit) = c.depth_limit {
+            model.set_depth_limit(depth_limit)?;
+        }
         Ok(vec![Box::new(crate::ContactForces::new(model))])
     }
 

@@ -64,7 +64,10 @@ mod test_spec;
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;
 pub use file::{FORMAT_VERSION, MAGIC};
-pub use loading::{TEST_WALL_BOTTOM, TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel, membrane_spec};
+pub use loading::{
+    TEST_DEPTH_LIMIT_MARGINS, TEST_ENERGY_TOLERANCE, TEST_FOLD_DEPTH_MARGINS, TEST_SKIN_FRACTION,
+    TEST_WALL_BOTTOM, TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel, membrane_spec,
+};
 pub use measure::*;
 pub use membrane::*;
 pub use placement::{Column, MAX_ATTEMPTS, NoRoom, PlacedParticle, place_spheres, random_rotation};

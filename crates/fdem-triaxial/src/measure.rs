@@ -51,6 +51,10 @@ pub struct Measurement {
     pub kinetic_energy: f64,
     /// Unbalanced force ratio (-).
     pub unbalanced_force: f64,
+    /// Energy-balance error over the guard's energy scale (-).
+    pub energy_error: f64,
+    /// Deepest node contact (m).
+    pub max_depth: f64,
     /// Number of node contacts.
     pub contacts: u64,
     /// Time step index.
@@ -95,6 +99,11 @@ pub struct CurvePoint {
     pub kinetic_energy: f64,
     /// Unbalanced force ratio (-).
     pub unbalanced_force: f64,
+    /// Energy-balance error over the stability guard's energy scale (-): bookkeeping
+    /// drift stays at percents; an instability grows without bound.
+    pub energy_error: f64,
+    /// Deepest node contact (m), against half the contact depth limit.
+    pub max_depth: f64,
     /// Number of node contacts.
     pub contacts: u64,
     /// Time step index.
@@ -119,6 +128,8 @@ impl CurvePoint {
             q: sigma_a - s0,
             kinetic_energy: m.kinetic_energy,
             unbalanced_force: m.unbalanced_force,
+            energy_error: m.energy_error,
+            max_depth: m.max_depth,
             contacts: m.contacts,
             step: m.step,
         }
@@ -126,16 +137,19 @@ impl CurvePoint {
 
     /// The real columns in [`CURVE_HEADER`] order (all but `contacts` and `step`).
     #[rustfmt::skip]
-    fn reals(&self) -> [f64; 12] {
+    fn reals(&self) -> [f64; 14] {
         [self.time, self.eps_a, self.eps_v, self.sigma_a, self.eta, self.height, self.volume,
-         self.axial_force, self.p, self.q, self.kinetic_energy, self.unbalanced_force]
+         self.axial_force, self.p, self.q, self.kinetic_energy, self.unbalanced_force,
+         self.energy_error, self.max_depth]
     }
 
     #[rustfmt::skip]
-    fn from_columns(r: [f64; 12], contacts: u64, step: u64) -> CurvePoint {
-        let [time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q, ke, uf] = r;
+    fn from_columns(r: [f64; 14], contacts: u64, step: u64) -> CurvePoint {
+        let [time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q, ke, uf, ee,
+             md] = r;
         CurvePoint { time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q,
-                     kinetic_energy: ke, unbalanced_force: uf, contacts, step }
+                     kinetic_energy: ke, unbalanced_force: uf, energy_error: ee, max_depth: md,
+                     contacts, step }
     }
 
     fn csv_line(&self) -> String {
@@ -148,7 +162,7 @@ impl CurvePoint {
 }
 
 /// Header line of `curve.csv`; the column order of [`CurveWriter`].
-pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,contacts,step";
+pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,energy_error,max_depth,contacts,step";
 
 /// Writes `curve.csv` row by row.
 ///
@@ -220,7 +234,7 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
         .next()
         .map_or(vec![], |(h, _)| h.split(',').map(str::trim).collect());
     let names: Vec<&str> = CURVE_HEADER.split(',').collect();
-    let mut index = [0usize; 14];
+    let mut index = [0usize; 16];
     for (slot, name) in index.iter_mut().zip(&names) {
         *slot = header.iter().position(|h| h == name).ok_or_else(|| {
             error(
@@ -244,7 +258,7 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
                 error(number, format!("column `{name}`: `{s}` is not {what}"))
             }))
         };
-        let mut reals = [0.0f64; 12];
+        let mut reals = [0.0f64; 14];
         for (k, value) in reals.iter_mut().enumerate() {
             let (s, bad) = field(k)?;
             *value = s.parse().map_err(|_| bad("a number"))?;
@@ -253,7 +267,7 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
             let (s, bad) = field(k)?;
             s.parse().map_err(|_| bad("a non-negative integer"))
         };
-        points.push(CurvePoint::from_columns(reals, integer(12)?, integer(13)?));
+        points.push(CurvePoint::from_columns(reals, integer(14)?, integer(15)?));
     }
     Ok(points)
 }
@@ -583,6 +597,8 @@ mod tests {
             f64::NEG_INFINITY,
             5e-324,
             0.1 + 0.2,
+            -7.5e-3,
+            2.0f64.sqrt(),
         ];
         CurvePoint::from_columns(
             std::array::from_fn(|i| *reals.iter().chain(&more).nth(i).unwrap()),
@@ -613,7 +629,7 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.starts_with(&format!("{CURVE_HEADER}\n")) && text.ends_with('\n'));
         assert_eq!(text.lines().count(), 4);
-        assert!(text.lines().all(|l| l.split(',').count() == 14));
+        assert!(text.lines().all(|l| l.split(',').count() == 16));
         let read = read_curve(&path).unwrap();
         assert_eq!(read.len(), 3);
         for (k, p) in read.iter().enumerate() {

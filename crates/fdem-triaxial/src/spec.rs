@@ -64,11 +64,12 @@ impl Default for SpecimenMesh {
 #[serde(deny_unknown_fields)]
 pub struct PreparationSection {
     /// Nominal solid fraction of the loose random packing the platens start from, in
-    /// (0, 0.35]; it sets the height of the loose column. Default 0.30.
+    /// (0, 0.35]; it sets the height of the loose column (grown while the random
+    /// placement does not fit). Default 0.35.
     #[serde(default = "default_loose", deserialize_with = "fraction")]
     pub loose_solid_fraction: f64,
     /// Closing speed of the two platens together (m/s), > 0; each platen moves at half of
-    /// it. Default 1.0.
+    /// it. Default 4.0 (docs/SPECIMENS.md).
     #[serde(default = "default_platen_speed", deserialize_with = "positive")]
     pub platen_speed: f64,
     /// Coulomb friction between particles and with the walls during preparation, >= 0.
@@ -329,10 +330,10 @@ fn default_order() -> ElementOrder {
     ElementOrder::Quadratic
 }
 fn default_loose() -> f64 {
-    0.30
+    0.35
 }
 fn default_platen_speed() -> f64 {
-    1.0
+    4.0
 }
 fn default_dt_safety() -> f64 {
     0.5
@@ -549,8 +550,11 @@ impl SpecimenSpec {
         let mut contact = self.contact.clone();
         let mut preparation_friction = self.preparation.friction;
         let mut scaled = Vec::new();
-        if let Some(margin) = contact.margin.as_mut() {
-            *margin *= law.factor_of("length").unwrap_or(h);
+        for length in [contact.margin.as_mut(), contact.depth_limit.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            *length *= law.factor_of("length").unwrap_or(h);
         }
         if self.exact_scaling {
             let MaterialSection {
@@ -566,6 +570,7 @@ impl SpecimenSpec {
                 damping,
                 damping_ratio,
                 margin: _,
+                depth_limit: _,
             } = &mut contact;
             let fields: [(&str, &'static str, &mut f64); 9] = [
                 ("material.density", "density", density),
@@ -661,6 +666,9 @@ impl SpecimenSpec {
         single("contact.damping_ratio", check_non_negative(c.damping_ratio))?;
         if let Some(margin) = c.margin {
             single("contact.margin", check_positive(margin))?;
+        }
+        if let Some(depth_limit) = c.depth_limit {
+            single("contact.depth_limit", check_positive(depth_limit))?;
         }
         if !c.enabled {
             return Err(fail(

@@ -12,6 +12,7 @@ use crate::plot::{CurvePlot, CurveSeries, plot_curves};
 use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
 use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
 use fdem_solver::output::{BoundaryBody, VtkSeries, contact_snapshot_text, write_atomically};
+use fdem_solver::{EnergyReport, Simulation};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -72,6 +73,10 @@ pub struct TestPlan {
     pub dt_bound: f64,
     /// What sets the bound.
     pub dt_bound_source: String,
+    /// Contact margin (m): Verlet skin and tunnelling scale.
+    pub contact_margin: f64,
+    /// Contact depth limit (m); contacts deeper than half of it stop the run.
+    pub depth_limit: f64,
     /// Platen velocity of the shear (m/s).
     pub loading_velocity: f64,
     /// Inertial number of the shear with the specimen's largest size.
@@ -160,6 +165,9 @@ pub struct ConsolidationResult {
     pub volume_rate_limit: f64,
     /// Largest overshoot of the axial stress above sigma_0, over sigma_0.
     pub max_overshoot: f64,
+    /// Relative energy-balance error at the end of consolidation (the balance is rebased
+    /// at the start of each phase).
+    pub energy_balance_error: f64,
     /// Phase cost.
     pub cost: PhaseCost,
 }
@@ -204,8 +212,13 @@ pub struct TestSummary {
     pub discarded_membrane_hits: u64,
     /// The most discarded hits in one output's evaluation.
     pub discarded_membrane_hits_max: u64,
+    /// Deepest contact seen at the outputs (m), against half the depth limit.
+    pub max_contact_depth: f64,
     /// Relative energy-balance error at the end.
     pub energy_balance_error: f64,
+    /// The energy balance at the end (J): kinetic, strain, other stored (contact springs,
+    /// membrane), dissipated by damping and friction, external work, balance error.
+    pub energy: EnergyReport,
     /// Worker threads.
     pub threads: usize,
     /// Files written.
@@ -249,18 +262,84 @@ struct Run<'a> {
     boundary_frames: Vec<(f64, String)>,
     escape_checks: u64,
     discarded: (u64, u64),
+    max_depth: f64,
+    energy: EnergyWindows,
+}
+
+/// The energy balance of a phase, checked by the solver's guard over windows (between
+/// two outputs) and accumulated here (docs/TRIAXIAL.md, "Energy balance").
+#[derive(Clone, Copy, Debug, Default)]
+struct EnergyWindows {
+    /// Kinetic plus stored energy at the start of the phase (J).
+    initial: f64,
+    /// Sums over the closed windows (J).
+    error: f64,
+    work: f64,
+    damping: f64,
+    friction: f64,
+}
+
+impl EnergyWindows {
+    /// Starts a phase: the guard's reference is the current state.
+    fn start(sim: &mut Simulation) -> EnergyWindows {
+        sim.reset_energy_reference();
+        let e = sim.energy();
+        EnergyWindows {
+            initial: e.kinetic + e.strain + e.other_potential,
+            ..EnergyWindows::default()
+        }
+    }
+
+    /// Closes a window: adds its terms, and the guard measures from the current state on.
+    fn close(&mut self, sim: &mut Simulation) {
+        let e = sim.energy();
+        self.error += e.balance_error;
+        self.work += e.external_work;
+        self.damping += e.damping_dissipated;
+        self.friction += e.friction_dissipated;
+        sim.reset_energy_reference();
+    }
+
+    /// The phase's accumulated balance error over its energy scale (the largest of the
+    /// initial energy, the external work and the dissipation), as the guard measures one
+    /// window.
+    fn relative(&self) -> f64 {
+        let scale = self
+            .initial
+            .abs()
+            .max(self.work.abs())
+            .max((self.damping + self.friction).abs())
+            .max(f64::MIN_POSITIVE);
+        self.error.abs() / scale
+    }
+
+    /// The phase's accumulated balance, with the current energies of `sim`.
+    fn report(&self, sim: &Simulation) -> EnergyReport {
+        let e = sim.energy();
+        EnergyReport {
+            damping_dissipated: self.damping + e.damping_dissipated,
+            friction_dissipated: self.friction + e.friction_dissipated,
+            external_work: self.work + e.external_work,
+            dissipated: self.damping + self.friction + e.dissipated,
+            balance_error: self.error + e.balance_error,
+            ..e
+        }
+    }
 }
 
 impl Run<'_> {
     fn measurement(&self) -> Measurement {
         let sim = &self.model.sim;
+        let energy = sim.energy();
         Measurement {
             time: sim.time,
             height: self.model.height(),
             volume: self.model.volume(),
             axial_force: self.model.axial_force(),
-            kinetic_energy: sim.energy().kinetic,
+            kinetic_energy: energy.kinetic,
             unbalanced_force: unbalanced_force_ratio(sim, self.reference_force),
+            energy_error: self.energy.relative(),
+            max_depth: sim.contact().map_or(0.0, |c| c.last_report().max_depth),
             contacts: sim.contact().map_or(0, |c| c.model.node_contacts().len()) as u64,
             step: sim.step,
         }
@@ -279,8 +358,10 @@ impl Run<'_> {
     fn check_escape(&mut self, phase: &'static str) -> Result<(), TriaxialError> {
         self.escape_checks += 1;
         if let Some(c) = self.model.sim.contact() {
-            let n = c.last_report().discarded_sheet_hits as u64;
+            let report = c.last_report();
+            let n = report.discarded_sheet_hits as u64;
             self.discarded = (self.discarded.0 + n, self.discarded.1.max(n));
+            self.max_depth = self.max_depth.max(report.max_depth);
         }
         let outside = self.model.particles_outside();
         if let Some(first) = outside.first() {
@@ -410,6 +491,8 @@ pub fn run_test(
         boundary_frames: Vec::new(),
         escape_checks: 0,
         discarded: (0, 0),
+        max_depth: 0.0,
+        energy: EnergyWindows::default(),
     };
     let test = &spec.test;
     let velocity = spec.loading_velocity();
@@ -435,6 +518,16 @@ pub fn run_test(
             dt,
             dt_bound: run.model.sim.bound.dt,
             dt_bound_source: run.model.sim.bound.source.clone(),
+            contact_margin: run
+                .model
+                .sim
+                .contact()
+                .map_or(f64::NAN, |c| c.model.margin()),
+            depth_limit: run
+                .model
+                .sim
+                .contact()
+                .map_or(f64::NAN, |c| c.model.depth_limit()),
             loading_velocity: velocity,
             inertial_number: spec.inertial_number(),
             consolidation_steps_max,
@@ -460,7 +553,9 @@ pub fn run_test(
         particles_outside: 0,
         discarded_membrane_hits: 0,
         discarded_membrane_hits_max: 0,
+        max_contact_depth: 0.0,
         energy_balance_error: 0.0,
+        energy: EnergyReport::default(),
         threads: rayon::current_num_threads(),
         outputs: Vec::new(),
     };
@@ -481,9 +576,12 @@ pub fn run_test(
         summary.discarded_membrane_hits,
         summary.discarded_membrane_hits_max,
     ) = run.discarded;
+    summary.max_contact_depth = run.max_depth;
+    summary.energy = run.energy.report(&run.model.sim);
     summary.energy_balance_error = {
-        let e = run.model.sim.energy();
-        run.model.sim.relative_balance_error(&e)
+        let mut windows = run.energy;
+        windows.close(&mut run.model.sim);
+        windows.relative()
     };
     match &result {
         Ok(true) => summary.status = "completed".into(),
@@ -552,6 +650,7 @@ fn stages(
         .sim
         .rebase_energy()
         .map_err(solver("consolidation"))?;
+    run.energy = EnergyWindows::start(&mut run.model.sim);
     let mut steps = 0u64;
     let mut result = &mut summary.consolidation;
     loop {
@@ -576,6 +675,7 @@ fn stages(
             result = &mut summary.consolidation;
         }
         if steps.is_multiple_of(test.check_interval) || steps >= planned {
+            run.energy.close(&mut run.model.sim);
             let m = run.measurement();
             let point = CurvePoint::from_measurement(&m, &prepared_state);
             log.push(&point).map_err(io(&log_path))?;
@@ -640,10 +740,16 @@ fn stages(
         }
     }
     result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+    result.energy_balance_error = {
+        run.energy.close(&mut run.model.sim);
+        run.energy.relative()
+    };
     drop(log);
 
     // ---- Step 2: shear at constant velocity ----
     run.model.set_top_velocity(-velocity)?;
+    // The shear's balance starts afresh (docs/TRIAXIAL.md, "Energy balance").
+    run.energy = EnergyWindows::start(&mut run.model.sim);
     let reference = Reference {
         h0: run.model.height(),
         v0: run.model.volume(),
@@ -677,6 +783,7 @@ fn stages(
         let eps_a = crate::measure::axial_strain(reference.h0, run.model.height());
         let done = eps_a >= test.target_strain;
         if eps_a >= next_output || done {
+            run.energy.close(&mut run.model.sim);
             let m = run.measurement();
             let point = CurvePoint::from_measurement(&m, &reference);
             if let Err(e) = curve.push(&point) {

@@ -219,6 +219,9 @@ fn bad_test_settings_are_refused_with_one_line_naming_the_key() {
         ("[test]\noutput_strain = 0.2\n", "test.output_strain"),
         ("[test]\ninertial_number = 0\n", "test.inertial_number"),
         ("[test]\nservo_band = 2\n", "test.servo_band"),
+        ("[test]\ndt_safety = 1.5\n", "test.dt_safety"),
+        ("[test]\ndt_safety = 0\n", "test.dt_safety"),
+        ("[contact]\ndepth_limit = -0.001\n", "contact.depth_limit"),
         ("[test]\nunknown = 1\n", "test"),
         (
             "[membrane]\npoisson_ratio = 0.6\n",
