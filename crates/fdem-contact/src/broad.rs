@@ -7,9 +7,10 @@
 //! per triangle, and otherwise through their packed integer coordinates in a deterministic
 //! open-addressing table (fixed hash function, slots numbered in insertion order); their
 //! triangles are stored as compressed rows, so a build costs O(triangles + surface
-//! nodes). A surface node's candidates are the triangles of
-//! other bodies listed in its own cell whose enlarged box contains it, sorted by (owner
-//! body, triangle).
+//! nodes). A surface node's candidates are the triangles of other bodies listed in its
+//! own cell whose enlarged box contains it and that lie within the enlargement of it (the
+//! point-triangle distance; the box's corners hold many pairs farther than that), sorted
+//! by (owner body, triangle).
 //!
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
@@ -20,7 +21,7 @@
 use rayon::prelude::*;
 
 use crate::ContactSurface;
-use crate::narrow::BARYCENTRIC_TOLERANCE;
+use crate::narrow::{BARYCENTRIC_TOLERANCE, distance2_to_triangle};
 
 /// Surface nodes per parallel work item (fixed, so the chunking never depends on the
 /// thread count).
@@ -353,6 +354,10 @@ impl BroadPhase {
         self.chunk_tris.resize_with(n_chunks, Vec::new);
         self.chunk_counts.resize_with(n_chunks, Vec::new);
         let reference = &self.reference;
+        // A node farther than the enlargement from the triangle itself cannot reach it
+        // before the next build (every point of the face moves at most half the skin, as
+        // the node does): the box only finds the cell, the distance decides.
+        let reach2 = e * e;
         let boxes = &self.boxes;
         let table = &self.table;
         let layout = self.layout;
@@ -376,7 +381,13 @@ impl BroadPhase {
                         let row = cell_start[cell]..cell_start[cell + 1];
                         for &t in &cell_tris[row] {
                             let tu = t as usize;
-                            if surface.triangle_body[tu] != body && in_box(&boxes[tu], x) {
+                            if surface.triangle_body[tu] != body
+                                && in_box(&boxes[tu], x)
+                                && distance2_to_triangle(
+                                    x,
+                                    surface.triangles[tu].map(|i| positions[i]),
+                                ) <= reach2
+                            {
                                 tris.push(t);
                             }
                         }

@@ -45,7 +45,7 @@
 //!   8 cells per triangle); cells are numbered densely when the occupied region is
 //!   compact (up to 4 cells per triangle) and through a seedless hash table otherwise.
 //!   A surface node's candidates are the other bodies' triangles in its cell whose
-//!   enlarged box holds it. Builds and evaluations are O(surface nodes + triangles).
+//!   enlarged box holds it and that lie within `delta + D` (plus the band) of it. Builds and evaluations are O(surface nodes + triangles).
 //! - Narrow phase: per (node, other body) the contact face is the nearest one (smallest
 //!   depth) among the faces the node is behind with its foot inside (within
 //!   [`BARYCENTRIC_TOLERANCE`]). The hand-written projection is the default kernel; the

@@ -1028,7 +1028,8 @@ impl Ctx<'_> {
             // A sheet that no face covers the node with: its edges and vertices.
             // It counts only where the node is behind the planes of all the sheet's nearby
             // faces (a ridge folded over it), not in front of any of them within the
-            // edge distance.
+            // edge distance. Nearby: the node's candidates, the faces within skin plus
+            // depth limit of it at the last broad-phase build.
             let flags = self.sheets.get(other as usize).copied().unwrap_or(0);
             let is_sheet = flags & SHEET != 0;
             if best.is_none() && flags & EDGE_TEST != 0 {

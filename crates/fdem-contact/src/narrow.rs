@@ -14,7 +14,7 @@ use parry3d_f64::query::PointQueryWithLocation;
 use parry3d_f64::shape::{Triangle, TrianglePointLocation};
 use serde::{Deserialize, Serialize};
 
-use crate::vec3::{cross, dot, norm2, scale, sub};
+use crate::vec3::{add, cross, dot, norm2, scale, sub};
 
 /// Tolerance on the barycentric coordinates of the foot of the perpendicular: a foot with
 /// every coordinate `>= -1e-6` counts as inside. It keeps a node pressed exactly onto a
@@ -158,6 +158,45 @@ pub fn project_to_edge(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) ->
     })
 }
 
+/// Squared distance from `p` to the closest point of the triangle `[a, b, c]` (Ericson,
+/// Real-Time Collision Detection, section 5.1.5: the Voronoi region of a vertex, an edge
+/// or the face). A degenerate triangle gives 0 (the exact tests reject it later).
+pub(crate) fn distance2_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return norm2(ap);
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return norm2(bp);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    let d = if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        norm2(sub(ap, scale(ab, d1 / (d1 - d3))))
+    } else {
+        let cp = sub(p, c);
+        let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+        let vb = d5 * d2 - d1 * d6;
+        let va = d3 * d6 - d5 * d4;
+        if d6 >= 0.0 && d5 <= d6 {
+            norm2(cp)
+        } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            norm2(sub(ap, scale(ac, d2 / (d2 - d6))))
+        } else if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            norm2(sub(bp, scale(sub(c, b), w)))
+        } else {
+            let denom = 1.0 / (va + vb + vc);
+            norm2(sub(ap, add(scale(ab, vb * denom), scale(ac, vc * denom))))
+        }
+    };
+    if d.is_nan() { 0.0 } else { d }
+}
+
 /// Hand-written node-to-triangle test.
 ///
 /// With `N = (b - a) x (c - a)` (outward, not normalised) the signed distance of the node
@@ -252,4 +291,58 @@ pub fn project_parry(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> O
         normal: [unit.x, unit.y, unit.z],
         weights: clamp_weights(weights),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Closest point by brute force: a fine barycentric grid over the triangle.
+    fn sampled_distance2(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
+        let n = 400;
+        let mut best = f64::INFINITY;
+        for i in 0..=n {
+            for j in 0..=(n - i) {
+                let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+                let q = add(a, add(scale(sub(b, a), u), scale(sub(c, a), v)));
+                best = best.min(norm2(sub(p, q)));
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn point_triangle_distance_matches_a_sampled_closest_point() {
+        // Deterministic pseudo-random points around equilateral, right, obtuse and
+        // sliver triangles: every Voronoi region (vertices, edges, face, both sides).
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let triangles = [
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.866, 0.0]],
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.3, 0.1]],
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.02, 0.01]],
+        ];
+        for tri in triangles {
+            for _ in 0..300 {
+                let p = [2.0 * next() + 0.5, 2.0 * next() + 0.3, next()];
+                let exact = distance2_to_triangle(p, tri).sqrt();
+                let sampled = sampled_distance2(p, tri).sqrt();
+                // The grid's spacing bounds how far its best sample is from the truth.
+                assert!(
+                    exact <= sampled + 1e-12,
+                    "{p:?} {tri:?}: {exact} > {sampled}"
+                );
+                assert!(
+                    sampled - exact < 6e-3,
+                    "{p:?} {tri:?}: {exact} vs {sampled}"
+                );
+            }
+        }
+    }
 }

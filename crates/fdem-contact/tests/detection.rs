@@ -5,7 +5,7 @@ mod common;
 
 use std::collections::BTreeSet;
 
-use common::{add, linear_sphere, model_for, random_rotation, rng, scale};
+use common::{add, cross, dot, linear_sphere, model_for, random_rotation, rng, scale, sub};
 use fdem_contact::narrow::{project_hand, project_parry};
 use fdem_contact::{BARYCENTRIC_TOLERANCE, ContactModel, ContactParams};
 use fdem_mesh::{MeshAssembly, Placement};
@@ -14,6 +14,27 @@ use rand::RngExt;
 
 /// Pairs (node, triangle of another body) whose node lies in the triangle's box enlarged
 /// by `e`, by brute force over all pairs.
+/// Distance from `p` to a triangle, written independently of the library's: the plane
+/// distance when the foot falls inside, else the nearest of the three edges (segments).
+fn distance_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
+    let n = cross(sub(b, a), sub(c, a));
+    let nn = dot(n, n);
+    let ap = sub(p, a);
+    let wb = dot(cross(ap, sub(c, a)), n) / nn;
+    let wc = dot(cross(sub(b, a), ap), n) / nn;
+    if wb >= 0.0 && wc >= 0.0 && wb + wc <= 1.0 {
+        return dot(ap, n).abs() / nn.sqrt();
+    }
+    let segment = |u: [f64; 3], v: [f64; 3]| {
+        let uv = sub(v, u);
+        let s = (dot(sub(p, u), uv) / dot(uv, uv)).clamp(0.0, 1.0);
+        let q = add(u, scale(uv, s));
+        dot(sub(p, q), sub(p, q)).sqrt()
+    };
+    segment(a, b).min(segment(b, c)).min(segment(c, a))
+}
+
+/// Every (surface node, other body's triangle) pair within `e` of each other.
 fn brute_force(assembly: &MeshAssembly, x: &[[f64; 3]], e: f64) -> BTreeSet<(usize, usize)> {
     let mut out = BTreeSet::new();
     for (b, range) in assembly.bodies.iter().enumerate() {
@@ -23,12 +44,7 @@ fn brute_force(assembly: &MeshAssembly, x: &[[f64; 3]], e: f64) -> BTreeSet<(usi
                 if assembly.triangle_body[t] as usize == b {
                     continue;
                 }
-                let inside = (0..3).all(|d| {
-                    let lo = tri.iter().map(|&i| x[i][d]).fold(f64::MAX, f64::min) - e;
-                    let hi = tri.iter().map(|&i| x[i][d]).fold(f64::MIN, f64::max) + e;
-                    p[d] >= lo && p[d] <= hi
-                });
-                if inside {
+                if distance_to_triangle(p, tri.map(|i| x[i])) <= e {
                     out.insert((node, t));
                 }
             }

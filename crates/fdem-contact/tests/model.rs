@@ -513,14 +513,16 @@ fn sheet_hits_deeper_than_the_fold_depth_are_discarded_and_counted() {
 
 #[test]
 fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
-    // The pair of the previous test, 0.7 margin deep: refused with the default depth limit
-    // (= margin), accepted with a depth limit of 2 margins, and found complete: the
-    // candidate boxes grow to `margin + depth_limit`, so every node behind a face within
-    // the limit is a candidate (checked against the brute-force contact count).
+    // The pair of `too_deep_penetration_is_an_error_not_a_lost_contact`, 0.7 margin deep:
+    // refused with the default depth limit (= margin), accepted with a depth limit of 2
+    // margins. The candidate boxes grow to `margin + depth_limit` (the detection property
+    // test checks the candidate lists against brute force for depth limits of 1-3 margins).
     let margin = 1e-4;
+    let plain =
+        |a: &MeshAssembly| model_for(a, ContactParams::default(), vec![], 1e-4, Some(margin));
     let mut r = rng(5);
     let deep = overlapping_pair(&mut r, 1, 0.01, 0.7 * margin);
-    let mut model = model_for(&deep, ContactParams::default(), vec![], 1e-4, Some(margin));
+    let mut model = plain(&deep);
     model.set_depth_limit(2.0 * margin).unwrap();
     assert_eq!(model.depth_limit(), 2.0 * margin);
     assert_eq!(model.margin(), margin);
@@ -534,13 +536,7 @@ fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
     assert!(model.candidate_enlargement() >= 3.0 * margin);
     // A deeper contact than half the new limit is refused again.
     let deeper = overlapping_pair(&mut rng(5), 1, 0.01, 1.2 * margin);
-    let mut model = model_for(
-        &deeper,
-        ContactParams::default(),
-        vec![],
-        1e-4,
-        Some(margin),
-    );
+    let mut model = plain(&deeper);
     model.set_depth_limit(2.0 * margin).unwrap();
     let err = model
         .add_forces(&deeper.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f)
@@ -553,13 +549,7 @@ fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
     // A shallow pair: the same forces, bit for bit, with either depth limit.
     let shallow = overlapping_pair(&mut rng(6), 1, 0.01, 0.2 * margin);
     let forces = |depth_limit: Option<f64>| {
-        let mut model = model_for(
-            &shallow,
-            ContactParams::default(),
-            vec![],
-            1e-4,
-            Some(margin),
-        );
+        let mut model = plain(&shallow);
         if let Some(d) = depth_limit {
             model.set_depth_limit(d).unwrap();
         }
@@ -576,13 +566,7 @@ fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
     assert_eq!(f1, f3);
 
     // Bad depth limits are refused.
-    let mut model = model_for(
-        &shallow,
-        ContactParams::default(),
-        vec![],
-        1e-4,
-        Some(margin),
-    );
+    let mut model = plain(&shallow);
     for bad in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
         assert!(model.set_depth_limit(bad).is_err());
     }
