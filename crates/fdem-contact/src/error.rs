@@ -92,6 +92,15 @@ pub enum ContactError {
         mass: f64,
     },
 
+    /// A contact length other than the margin (depth limit, sheet fold depth) is invalid.
+    #[error("contact {what} {value} m is not finite and > 0; give a positive length")]
+    InvalidLength {
+        /// `"depth limit"` or `"sheet fold depth"`.
+        what: &'static str,
+        /// The value that was given.
+        value: f64,
+    },
+
     /// The Verlet-skin margin is not finite and positive.
     #[error(
         "contact margin {margin} m is not finite and > 0; use for example \

@@ -24,6 +24,15 @@ pub const TUNNELLING_FRACTION: f64 = 0.5;
 /// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
 const PLANE_SLACK: f64 = 1e-9;
 
+/// `value` if it is a finite length > 0, else [`ContactError::InvalidLength`].
+fn positive_length(what: &'static str, value: f64) -> Result<f64, ContactError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(ContactError::InvalidLength { what, value })
+    }
+}
+
 /// Unit normal and offset `[n, n . a]` of a face's plane; zeros for a degenerate face
 /// (every node is then at signed distance 0 and reaches the exact tests, which reject it).
 fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
@@ -417,16 +426,13 @@ impl ContactModel {
     /// means, as the triaxial test does every output).
     ///
     /// # Errors
-    /// [`ContactError::InvalidMargin`] for a `fold_depth` that is not finite and > 0.
+    /// [`ContactError::InvalidLength`] for a `fold_depth` that is not finite and > 0.
     pub fn set_sheet_bodies(
         &mut self,
         bodies: &[u32],
         fold_depth: f64,
     ) -> Result<(), ContactError> {
-        if !(fold_depth.is_finite() && fold_depth > 0.0) {
-            return Err(ContactError::InvalidMargin { margin: fold_depth });
-        }
-        self.sheet_fold_depth = fold_depth;
+        self.sheet_fold_depth = positive_length("sheet fold depth", fold_depth)?;
         self.flag_bodies(bodies, EDGE_TEST | SHEET);
         Ok(())
     }
@@ -517,14 +523,9 @@ impl ContactModel {
     /// crossed. Sheets ([`ContactModel::set_sheet_bodies`]) have a fold depth of their own.
     ///
     /// # Errors
-    /// [`ContactError::InvalidMargin`] for a depth that is not finite and > 0.
+    /// [`ContactError::InvalidLength`] for a depth that is not finite and > 0.
     pub fn set_depth_limit(&mut self, depth_limit: f64) -> Result<(), ContactError> {
-        if !(depth_limit.is_finite() && depth_limit > 0.0) {
-            return Err(ContactError::InvalidMargin {
-                margin: depth_limit,
-            });
-        }
-        self.depth_limit = depth_limit;
+        self.depth_limit = positive_length("depth limit", depth_limit)?;
         self.rebuild_requested = true;
         Ok(())
     }
@@ -985,6 +986,8 @@ impl Ctx<'_> {
         // that are beyond its reach by more than `slack`, far above the round-off of
         // `n . x - n . a` (1e-16 of the coordinates), so the contacts are unchanged.
         let slack = PLANE_SLACK * depth_limit;
+        // Behind the plane (or on it) by at most the depth limit, up to the slack.
+        let within_reach = |s: f64| s <= slack && s >= -depth_limit - slack;
         let signed = &mut scratch.signed;
         signed.clear();
         signed.extend(cands.iter().map(|c| {
@@ -1014,8 +1017,7 @@ impl Ctx<'_> {
                         return Err(self.tunnelling(k, Counterpart::Body(other), d));
                     }
                 }
-                let s = signed[i - 1];
-                if s > slack || s < -depth_limit - slack {
+                if !within_reach(signed[i - 1]) {
                     continue;
                 }
                 let face = tri.map(|j| self.positions[j]);
@@ -1036,7 +1038,7 @@ impl Ctx<'_> {
                 let mut edge: Option<(usize, [usize; 3], crate::FaceHit)> = None;
                 for (c, &s) in cands[group..i].iter().zip(&signed[group..i]) {
                     // `project_to_edge` needs the node behind the plane within the limit.
-                    if s > slack || s < -depth_limit - slack {
+                    if !within_reach(s) {
                         continue;
                     }
                     let tri = c.nodes.map(|j| j as usize);

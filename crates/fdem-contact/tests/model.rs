@@ -507,8 +507,10 @@ fn sheet_hits_deeper_than_the_fold_depth_are_discarded_and_counted() {
     assert_eq!(shallow.discarded_sheet_hits, 0);
     assert!(shallow.contacts > deep.contacts);
     let mut model = model_for(&pair, ContactParams::default(), vec![], 1e-4, Some(margin));
-    assert!(model.set_sheet_bodies(&[1], 0.0).is_err());
-    assert!(model.set_sheet_bodies(&[1], f64::NAN).is_err());
+    for bad in [0.0, f64::NAN] {
+        let e = model.set_sheet_bodies(&[1], bad).unwrap_err().to_string();
+        assert!(e.contains("sheet fold depth"), "{e}");
+    }
 }
 
 #[test]
@@ -568,8 +570,14 @@ fn a_raised_depth_limit_keeps_deep_contacts_and_changes_no_shallow_force() {
     // Bad depth limits are refused.
     let mut model = plain(&shallow);
     for bad in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
-        assert!(model.set_depth_limit(bad).is_err());
+        let e = model.set_depth_limit(bad).unwrap_err().to_string();
+        assert!(e.contains("depth limit"), "{e}");
     }
+    assert_eq!(
+        model.depth_limit(),
+        margin,
+        "a refused value changes nothing"
+    );
 }
 
 #[test]
