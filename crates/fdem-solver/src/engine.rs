@@ -119,14 +119,14 @@ impl Simulation {
         gravity: [f64; 3],
         time_step: TimeStep,
     ) -> Result<Self, SolverError> {
-        let bound = std::iter::once(elastic.stable_time_step())
-            .chain(contributions.iter().map(|c| c.stable_time_step()))
-            .flatten()
-            .min_by(|a, b| a.dt.total_cmp(&b.dt))
-            .unwrap_or(StepBound {
-                dt: f64::INFINITY,
-                source: "nothing (no elements or contacts)".into(),
-            });
+        let bound = StepBound::smallest(
+            std::iter::once(elastic.stable_time_step())
+                .chain(contributions.iter().map(|c| c.stable_time_step())),
+        )
+        .unwrap_or(StepBound {
+            dt: f64::INFINITY,
+            source: "nothing (no elements or contacts)".into(),
+        });
         let dt = match time_step {
             TimeStep::Fixed(dt) => dt,
             TimeStep::Automatic { safety } => safety * bound.dt,

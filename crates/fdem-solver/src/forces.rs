@@ -34,6 +34,16 @@ pub struct StepBound {
     pub source: String,
 }
 
+impl StepBound {
+    /// The smallest of the given bounds (contributions without one give `None`).
+    pub fn smallest(bounds: impl IntoIterator<Item = Option<StepBound>>) -> Option<StepBound> {
+        bounds
+            .into_iter()
+            .flatten()
+            .min_by(|a, b| a.dt.total_cmp(&b.dt))
+    }
+}
+
 /// Energy exchanged by a contribution at the evaluated state, for energy bookkeeping.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Powers {
