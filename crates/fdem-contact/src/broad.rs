@@ -148,6 +148,8 @@ pub(crate) struct BroadPhase {
     pub(crate) builds: usize,
     /// Enlargement of the triangle boxes at the last build (m).
     pub(crate) enlargement: f64,
+    /// Reach in front of a face's plane at the last build (m), see [`FRONT_SKINS`].
+    pub(crate) front: f64,
     /// Cell size at the last build (m).
     pub(crate) cell_size: f64,
     /// Surface node positions at the last build.
@@ -212,15 +214,48 @@ fn cell_of(x: [f64; 3], origin: [f64; 3], inv: f64) -> [i64; 3] {
     ]
 }
 
+/// A node in front of a face's plane (or on it) is a candidate only within this many skins
+/// of the face. Justification: between builds the node and every point of the face move
+/// at most half a skin each. A node that ends in contact lies behind the moved face at
+/// depth z with its foot inside it; the same barycentric point of the face at the build
+/// is within half a skin of that foot, so a node in front at the build had `z cos(theta)
+/// <= skin` and was within `skin sqrt(1 + (1 + tan(theta))^2)` of the face, theta the
+/// face's tilt since the build: two skins cover tilts up to 36 degrees, far beyond what an
+/// elastic face whose edges are longer than the skin can turn between builds. Sheets keep
+/// every face within reach (their edge contacts and fold filter need faces in front).
+pub(crate) const FRONT_SKINS: f64 = 2.0;
+
+/// Whether `x` lies strictly behind the plane of the face (outward normal by the
+/// right-hand rule of its corners).
+#[inline(always)]
+fn behind_plane(x: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> bool {
+    let n = crate::vec3::cross(crate::vec3::sub(b, a), crate::vec3::sub(c, a));
+    crate::vec3::dot(n, crate::vec3::sub(x, a)) < 0.0
+}
+
 #[inline(always)]
 fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
     x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
 }
 
 impl BroadPhase {
-    /// Rebuilds grid and candidates from the current positions. `reach` is the Verlet
-    /// skin plus the depth limit; positions must be finite (the model checks them first).
-    pub(crate) fn build(&mut self, positions: &[[f64; 3]], surface: &ContactSurface, reach: f64) {
+    /// Rebuilds grid and candidates from the current positions; positions must be finite
+    /// (the model checks them first).
+    ///
+    /// A pair (node, face of another body) is a candidate when the node is within
+    /// `skin + depth_limit` of the face (plus the tolerance band) and either behind the
+    /// face's plane, or within [`FRONT_SKINS`] skins of the face (plus the band), or the
+    /// face belongs to a body flagged in `two_sided` (sheets, whose edges also make
+    /// contacts and whose edge filter looks at faces in front).
+    pub(crate) fn build(
+        &mut self,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        skin: f64,
+        depth_limit: f64,
+        two_sided: &[bool],
+    ) {
+        let reach = skin + depth_limit;
         let n_surface = surface.surface_nodes.len();
         self.reference.clear();
         self.reference
@@ -356,8 +391,13 @@ impl BroadPhase {
         let reference = &self.reference;
         // A node farther than the enlargement from the triangle itself cannot reach it
         // before the next build (every point of the face moves at most half the skin, as
-        // the node does): the box only finds the cell, the distance decides.
+        // the node does): the box only finds the cell, the distance decides. A node in
+        // front of the face's plane must first cross the face or the sides of the prism
+        // behind it; see FRONT_SKINS.
         let reach2 = e * e;
+        let front = FRONT_SKINS * skin + (e - reach);
+        self.front = front;
+        let front2 = front * front;
         let boxes = &self.boxes;
         let table = &self.table;
         let layout = self.layout;
@@ -381,12 +421,16 @@ impl BroadPhase {
                         let row = cell_start[cell]..cell_start[cell + 1];
                         for &t in &cell_tris[row] {
                             let tu = t as usize;
-                            if surface.triangle_body[tu] != body
-                                && in_box(&boxes[tu], x)
-                                && distance2_to_triangle(
-                                    x,
-                                    surface.triangles[tu].map(|i| positions[i]),
-                                ) <= reach2
+                            let owner = surface.triangle_body[tu];
+                            if owner == body || !in_box(&boxes[tu], x) {
+                                continue;
+                            }
+                            let face = surface.triangles[tu].map(|i| positions[i]);
+                            let d2 = distance2_to_triangle(x, face);
+                            if d2 <= reach2
+                                && (d2 <= front2
+                                    || two_sided.get(owner as usize).copied().unwrap_or(false)
+                                    || behind_plane(x, face))
                             {
                                 tris.push(t);
                             }

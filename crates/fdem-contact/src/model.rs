@@ -576,16 +576,24 @@ impl ContactModel {
         self.broad.enlargement
     }
 
+    /// How far in front of a face's plane a node remains a candidate of the face at the
+    /// last build (m): two skins plus the tolerance band (a node further in front cannot
+    /// get behind the face before the next build; see the broad phase's `FRONT_SKINS`).
+    pub fn candidate_front_reach(&self) -> f64 {
+        self.broad.front
+    }
+
     /// Cell size of the spatial hash at the last build (m).
     pub fn cell_size(&self) -> f64 {
         self.broad.cell_size
     }
 
     /// Candidate pairs of the current broad phase as (global node id, triangle index), in
-    /// the order the narrow phase visits them. A pair is a candidate when the node's
-    /// position at the last build lies inside the triangle's bounding box at the last
-    /// build enlarged by [`ContactModel::candidate_enlargement`], and the triangle belongs
-    /// to another body.
+    /// the order the narrow phase visits them. A pair is a candidate when, at the last
+    /// build, the triangle belongs to another body, the node lies within
+    /// [`ContactModel::candidate_enlargement`] of the triangle, and the node is behind the
+    /// triangle's plane, or within [`ContactModel::candidate_front_reach`] of the
+    /// triangle, or the triangle belongs to a sheet ([`ContactModel::set_sheet_bodies`]).
     pub fn candidate_pairs(&self) -> Vec<(usize, usize)> {
         let mut out = Vec::with_capacity(self.broad.cand.len());
         if !self.broad.built {
@@ -796,8 +804,14 @@ impl ContactModel {
         }
         let rebuild = self.rebuild_requested || !self.broad.built || scan.max_drift2 > half * half;
         if rebuild {
-            self.broad
-                .build(positions, &self.surface, margin + self.depth_limit);
+            let two_sided: Vec<bool> = self.sheets.iter().map(|f| f & SHEET != 0).collect();
+            self.broad.build(
+                positions,
+                &self.surface,
+                margin,
+                self.depth_limit,
+                &two_sided,
+            );
             self.rebuild_requested = false;
         }
         let check_faces = 2.0 * v_max * dt > half;

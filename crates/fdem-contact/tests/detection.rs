@@ -12,8 +12,6 @@ use fdem_mesh::{MeshAssembly, Placement};
 use proptest::prelude::*;
 use rand::RngExt;
 
-/// Pairs (node, triangle of another body) whose node lies in the triangle's box enlarged
-/// by `e`, by brute force over all pairs.
 /// Distance from `p` to a triangle, written independently of the library's: the plane
 /// distance when the foot falls inside, else the nearest of the three edges (segments).
 fn distance_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
@@ -34,8 +32,14 @@ fn distance_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
     segment(a, b).min(segment(b, c)).min(segment(c, a))
 }
 
-/// Every (surface node, other body's triangle) pair within `e` of each other.
-fn brute_force(assembly: &MeshAssembly, x: &[[f64; 3]], e: f64) -> BTreeSet<(usize, usize)> {
+/// Every (surface node, other body's triangle) pair within `e` of each other where the
+/// node is behind the triangle's plane or within `front` of the triangle.
+fn brute_force(
+    assembly: &MeshAssembly,
+    x: &[[f64; 3]],
+    e: f64,
+    front: f64,
+) -> BTreeSet<(usize, usize)> {
     let mut out = BTreeSet::new();
     for (b, range) in assembly.bodies.iter().enumerate() {
         for &node in &assembly.surface_nodes[range.surface_nodes.clone()] {
@@ -44,7 +48,45 @@ fn brute_force(assembly: &MeshAssembly, x: &[[f64; 3]], e: f64) -> BTreeSet<(usi
                 if assembly.triangle_body[t] as usize == b {
                     continue;
                 }
-                if distance_to_triangle(p, tri.map(|i| x[i])) <= e {
+                let face = tri.map(|i| x[i]);
+                let d = distance_to_triangle(p, face);
+                let behind = dot(
+                    cross(sub(face[1], face[0]), sub(face[2], face[0])),
+                    sub(p, face[0]),
+                ) < 0.0;
+                if d <= e && (behind || d <= front) {
+                    out.insert((node, t));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Every (surface node, other body's triangle) pair where the node is behind the
+/// triangle's plane by at most `depth` with its foot inside the triangle (a face contact
+/// the narrow phase can report).
+fn contact_capable(
+    assembly: &MeshAssembly,
+    x: &[[f64; 3]],
+    depth: f64,
+) -> BTreeSet<(usize, usize)> {
+    let mut out = BTreeSet::new();
+    for (b, range) in assembly.bodies.iter().enumerate() {
+        for &node in &assembly.surface_nodes[range.surface_nodes.clone()] {
+            let p = x[node];
+            for (t, tri) in assembly.triangles.iter().enumerate() {
+                if assembly.triangle_body[t] as usize == b {
+                    continue;
+                }
+                let [a, bb, c] = tri.map(|i| x[i]);
+                let n = cross(sub(bb, a), sub(c, a));
+                let nn = dot(n, n);
+                let ap = sub(p, a);
+                let wb = dot(cross(ap, sub(c, a)), n) / nn;
+                let wc = dot(cross(sub(bb, a), ap), n) / nn;
+                let signed = dot(ap, n) / nn.sqrt();
+                if wb >= 0.0 && wc >= 0.0 && wb + wc <= 1.0 && signed < 0.0 && -signed <= depth {
                     out.insert((node, t));
                 }
             }
@@ -124,11 +166,13 @@ proptest! {
         let set: BTreeSet<_> = got.iter().copied().collect();
         prop_assert_eq!(set.len(), got.len(), "no duplicates");
         prop_assert!(assembly.n_bodies() < 2 || !got.is_empty(), "neighbours give candidates");
-        prop_assert_eq!(&set, &brute_force(&assembly, &x0, e));
+        let front = model.candidate_front_reach();
+        prop_assert!(front >= 2.0 * margin && front < 2.0 * margin + (e - reach) * 1.001);
+        prop_assert_eq!(&set, &brute_force(&assembly, &x0, e, front));
 
         // Small motion: every node moves less than margin / 2, no rebuild; the candidate
-        // lists still hold every pair that can be in contact now (node within the depth
-        // limit of the current triangle box).
+        // lists still hold every pair that can be in contact now: the node behind the
+        // current triangle's plane, its foot inside the triangle, within the depth limit.
         let mut r = rng(seed ^ 0x5eed);
         let x1: Vec<[f64; 3]> = x0
             .iter()
@@ -140,7 +184,7 @@ proptest! {
         let report = evaluate(&mut model, &x1);
         prop_assert!(!report.rebuilt);
         prop_assert_eq!(model.candidate_pairs(), got.clone());
-        let needed = brute_force(&assembly, &x1, depth_limit);
+        let needed = contact_capable(&assembly, &x1, depth_limit);
         prop_assert!(needed.is_subset(&set), "a contact-capable pair is missing");
 
         // One body moves rigidly by 0.6 margin: rebuild, and the lists equal brute force
@@ -155,7 +199,7 @@ proptest! {
         prop_assert!(report.rebuilt);
         let e = model.candidate_enlargement();
         let set2: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
-        prop_assert_eq!(set2, brute_force(&assembly, &x2, e));
+        prop_assert_eq!(set2, brute_force(&assembly, &x2, e, model.candidate_front_reach()));
     }
 }
 
@@ -334,7 +378,12 @@ fn spread_scenes_use_the_hash_and_still_match_brute_force() {
     evaluate(&mut model, &x);
     assert!((model.cell_size() - cell).abs() < 1e-9 * cell);
     let got: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
-    let expect = brute_force(&assembly, &x, model.candidate_enlargement());
+    let expect = brute_force(
+        &assembly,
+        &x,
+        model.candidate_enlargement(),
+        model.candidate_front_reach(),
+    );
     assert!(!expect.is_empty());
     assert_eq!(got, expect);
     // Each cluster sees only itself: twice the single cluster's candidates.

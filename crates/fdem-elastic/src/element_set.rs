@@ -282,6 +282,26 @@ impl ElementSet {
         Ok(DMatrix::from_row_slice(n, n, &k))
     }
 
+    /// Rest stiffness matrices of all elements (row-major `3N x 3N`, concatenated) and
+    /// their body-local node ids (`N` per element, concatenated).
+    pub(crate) fn rest_stiffness_and_nodes(&self) -> (Vec<f64>, Vec<usize>) {
+        fn collect<const N: usize>(els: &[TetRef<N>], lame: Lame) -> (Vec<f64>, Vec<usize>) {
+            let k = els
+                .iter()
+                .flat_map(|el| reference_stiffness(el, lame))
+                .collect();
+            let n = els
+                .iter()
+                .flat_map(|el| el.nodes.iter().map(|&n| n as usize))
+                .collect();
+            (k, n)
+        }
+        match &self.elements {
+            Elements::Linear(e) => collect(e, self.lame),
+            Elements::Quadratic(e) => collect(e, self.lame),
+        }
+    }
+
     /// Body-local node ids of one element, in local order.
     pub fn element_nodes(&self, element: usize) -> Result<Vec<usize>, ElasticError> {
         let n_elements = self.n_elements();

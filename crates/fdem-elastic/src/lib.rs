@@ -6,7 +6,8 @@
 //! * [`ElementSet`]: all tetrahedra of one body (4-node linear or 10-node quadratic), with
 //!   reference data precomputed once; elastic nodal forces, strain energy and element
 //!   stresses for given node positions; lumped nodal masses; the per-element stable time
-//!   step of explicit central differences (MODEL.md section 11).
+//!   step of explicit central differences (MODEL.md section 11), and the assembled body's
+//!   bound estimated by power iteration ([`ElementSet::assembled_time_step`]).
 //! * [`polar_rotation`]: the rotation of the polar decomposition of a 3x3 matrix.
 //!
 //! # What it does not own
@@ -46,6 +47,7 @@
 
 #![warn(missing_docs)]
 
+mod assembled_step;
 mod element_set;
 mod error;
 mod kernels;
@@ -53,6 +55,7 @@ mod mat3;
 mod material;
 pub mod polar;
 
+pub use assembled_step::{ASSEMBLED_STEP_MAX_ITERATIONS, ASSEMBLED_STEP_TOLERANCE, AssembledStep};
 pub use element_set::{ElementSet, HRZ_CORNER_FRACTION, HRZ_MID_EDGE_FRACTION, TetKind};
 pub use error::ElasticError;
 pub use mat3::Mat3;

@@ -3,7 +3,8 @@
 //! both in units of the specimen's contact margin, and times 300 steps.
 //!
 //! `cargo run --release -p fdem-triaxial --example step_cost -- SPECIMEN [SKIN DEPTH]...`
-//! (defaults: the test's own settings, 0.25 and 2).
+//! (defaults: the test's own settings, 0.25 and 2; `STEPS=N` in the environment times N
+//! steps instead of 300).
 use fdem_triaxial::{PreparedSpecimen, TEST_SKIN_FRACTION, TestModel};
 use std::time::Instant;
 
@@ -35,7 +36,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..20 {
             model.sim.advance()?;
         }
-        let steps = 300;
+        let steps: usize = std::env::var("STEPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(300);
         let clock = Instant::now();
         for _ in 0..steps {
             model.sim.advance()?;

@@ -34,7 +34,7 @@ pub enum TriaxialError {
     /// Random placement could not fit the particles, even in the tallest column tried.
     #[error(
         "could not place particle {particle} of {total} (diameter {diameter} m) without overlap \
-         in a column {height:.4} m tall after {attempts} attempts; lower \
+         in a column {height:.4} m tall after {sweeps} relaxation sweeps; lower \
          preparation.loose_solid_fraction"
     )]
     Placement {
@@ -46,8 +46,8 @@ pub enum TriaxialError {
         diameter: f64,
         /// Height of the last column tried (m).
         height: f64,
-        /// Random positions tried for it.
-        attempts: usize,
+        /// Relaxation sweeps run in the last column.
+        sweeps: usize,
     },
     /// The solver refused a set-up or a step during preparation.
     #[error("preparation, phase `{phase}`: {cause}")]

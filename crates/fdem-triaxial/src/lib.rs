@@ -70,13 +70,13 @@ pub use loading::{
 };
 pub use measure::*;
 pub use membrane::*;
-pub use placement::{Column, MAX_ATTEMPTS, NoRoom, PlacedParticle, place_spheres, random_rotation};
+pub use placement::{Column, MAX_SWEEPS, NoRoom, PlacedParticle, place_spheres, random_rotation};
 pub use plot::*;
 pub use prepare::{
-    COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer, Phase,
-    PreparationReport, PreparedSpecimen, Silent, Snapshot, Status, WALL_BOTTOM, WALL_CYLINDER,
-    WALL_TOP, particle_sections, preparation_walls, prepare, specimen_time_step,
-    unbalanced_force_ratio,
+    COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer,
+    PREPARATION_ENERGY_TOLERANCE, Phase, PreparationReport, PreparedSpecimen, Silent, Snapshot,
+    Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, particle_sections, preparation_walls, prepare,
+    specimen_time_step, unbalanced_force_ratio,
 };
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,

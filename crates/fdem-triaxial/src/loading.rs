@@ -459,8 +459,7 @@ impl TestModel {
         let contact = fdem_solver::ContactForces::new(model);
         // The bound the simulation will compute (damping and rings impose none).
         let bound = StepBound::smallest([
-            elastic.stable_time_step(),
-            contact.stable_time_step(),
+            StepBound::combined(elastic.stable_time_step(), contact.stable_time_step()),
             membrane.stable_time_step(),
         ])
         .ok_or_else(|| setup("nothing bounds the time step"))?;

@@ -1,13 +1,25 @@
-//! Random loose placement: non-overlapping spheres in a vertical cylinder, largest first,
-//! found through a uniform grid (each test looks at the 27 cells around a candidate, never
-//! at all placed particles), with uniformly random orientations.
+//! Random loose placement: non-overlapping spheres in a vertical cylinder, with uniformly
+//! random orientations. Centres start uniformly at random (overlaps allowed) and overlapping
+//! pairs are pushed apart until none is left (relaxation sweeps over the pairs a uniform
+//! grid finds among the 27 cells around each sphere, never all pairs). Unlike random
+//! sequential addition, which jams near a sphere fraction of 0.38 in bulk and 0.22 in a
+//! cylinder five diameters wide, this reaches the requested loose fraction up to about 0.5.
 
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
 
-/// Random positions tried for one particle before the column is declared too full.
-pub const MAX_ATTEMPTS: usize = 20_000;
+/// Relaxation sweeps before the column is declared too full.
+pub const MAX_SWEEPS: usize = 5_000;
+/// Each push separates an overlapping pair by this factor times the overlap (slight
+/// over-relaxation, so that pairs do not end exactly in contact and sweeps converge).
+const PUSH_FACTOR: f64 = 1.05;
+/// Relative shortfall of a pair's distance below its reach that counts as separated
+/// (round-off).
+const SEPARATED: f64 = 1e-13;
+/// Each push separates a pair by this much of its reach beyond the overlap, so that pairs
+/// pressed together by the projections onto the walls do not stall at round-off.
+const PUSH_EXTRA: f64 = 1e-9;
 
 /// One placed particle: the reference placement of its template mesh.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -33,7 +45,8 @@ pub struct Column {
     pub top: f64,
 }
 
-/// Why a placement failed: the particle (in placement order) that found no room.
+/// Why a placement failed: a particle (in placement order) still overlapping after the last
+/// sweep, or that does not fit the column at all.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NoRoom {
     /// Index in placement order.
@@ -122,12 +135,14 @@ impl Grid {
 
 /// Places spheres of the given diameters (with their size class) at random in `column`,
 /// without overlap: two spheres are at least `clearance` apart, and every sphere stays
-/// `clearance` inside the cylinder and its ends. Diameters are placed from the largest to
-/// the smallest (ties in the given order); the result is in placement order.
+/// `clearance` inside the cylinder and its ends. The result is in placement order, largest
+/// diameters first (ties in the given order).
 ///
-/// Deterministic for a given `seed`. The grid cell is the largest diameter plus the
-/// clearance, so any sphere that could overlap a candidate is in one of the 27 cells
-/// around it.
+/// Centres start uniformly at random in the region each sphere may occupy; then sweeps
+/// over all overlapping pairs (found through a grid of cell d_max + clearance) push each
+/// pair apart along the line of centres, each sphere by half of [`PUSH_FACTOR`] times the
+/// overlap, and project the spheres back into their regions, until a sweep finds no overlap
+/// (at most [`MAX_SWEEPS`] sweeps). Deterministic for a given `seed`.
 pub fn place_spheres(
     diameters: &[(f64, usize)],
     column: &Column,
@@ -137,55 +152,130 @@ pub fn place_spheres(
     let mut order: Vec<usize> = (0..diameters.len()).collect();
     order.sort_by(|&a, &b| diameters[b].0.total_cmp(&diameters[a].0).then(a.cmp(&b)));
     let d_max = diameters.iter().map(|d| d.0).fold(0.0, f64::max);
-    let mut grid = Grid::new(column, d_max + clearance);
     let mut rng = Pcg64::seed_from_u64(seed);
     let mut placed: Vec<PlacedParticle> = Vec::with_capacity(diameters.len());
     for (n, &i) in order.iter().enumerate() {
         let (d, class) = diameters[i];
-        let r = 0.5 * d;
-        let radial = column.radius - r - clearance;
-        let (z0, z1) = (column.bottom + r + clearance, column.top - r - clearance);
-        if radial < 0.0 || z1 < z0 {
-            return Err(NoRoom {
-                particle: n,
-                diameter: d,
-            });
-        }
-        let mut found = None;
-        for _ in 0..MAX_ATTEMPTS {
-            // Uniform in the disc of radius `radial` and in [z0, z1].
-            let rho = radial * rng.random_range(0.0f64..1.0).sqrt();
-            let theta = std::f64::consts::TAU * rng.random_range(0.0f64..1.0);
-            let z = if z1 > z0 {
-                rng.random_range(z0..z1)
-            } else {
-                z0
-            };
-            let x = [rho * theta.cos(), rho * theta.sin(), z];
-            let free = grid.all_near(x, |id| {
-                let o = &placed[id as usize];
-                let reach = r + 0.5 * o.diameter + clearance;
-                let dx = [x[0] - o.center[0], x[1] - o.center[1], x[2] - o.center[2]];
-                dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2] >= reach * reach
-            });
-            if free {
-                found = Some(x);
-                break;
-            }
-        }
-        let Some(center) = found else {
-            return Err(NoRoom {
-                particle: n,
-                diameter: d,
-            });
+        let region = Region::of(column, 0.5 * d, clearance).ok_or(NoRoom {
+            particle: n,
+            diameter: d,
+        })?;
+        // Uniform in the disc of radius `radial` and in [z0, z1].
+        let rho = region.radial * rng.random_range(0.0f64..1.0).sqrt();
+        let theta = std::f64::consts::TAU * rng.random_range(0.0f64..1.0);
+        let z = if region.z1 > region.z0 {
+            rng.random_range(region.z0..region.z1)
+        } else {
+            region.z0
         };
-        grid.insert(center, placed.len() as u32);
         placed.push(PlacedParticle {
             diameter: d,
-            center,
+            center: [rho * theta.cos(), rho * theta.sin(), z],
             orientation: random_rotation(&mut rng),
             class,
         });
     }
-    Ok(placed)
+    let regions: Vec<Region> = placed
+        .iter()
+        .map(|p| Region::of(column, 0.5 * p.diameter, clearance))
+        .collect::<Option<_>>()
+        .unwrap_or_default();
+    let mut near: Vec<u32> = Vec::new();
+    for _ in 0..MAX_SWEEPS {
+        let mut grid = Grid::new(column, d_max + clearance);
+        for (id, p) in placed.iter().enumerate() {
+            grid.insert(p.center, id as u32);
+        }
+        let mut worst: Option<(f64, usize)> = None;
+        for i in 0..placed.len() {
+            near.clear();
+            grid.all_near(placed[i].center, |id| {
+                if id as usize > i {
+                    near.push(id);
+                }
+                true
+            });
+            for &j in &near {
+                let j = j as usize;
+                let (a, b) = (&placed[i], &placed[j]);
+                let reach = 0.5 * (a.diameter + b.diameter) + clearance;
+                let mut dx: [f64; 3] = std::array::from_fn(|k| b.center[k] - a.center[k]);
+                let dist = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
+                // Shortfalls of round-off size (a pair held together by the projections)
+                // count as separated.
+                if dist >= reach * (1.0 - SEPARATED) {
+                    continue;
+                }
+                if worst.is_none_or(|w| reach - dist > w.0) {
+                    worst = Some((reach - dist, i));
+                }
+                if dist > 0.0 {
+                    dx = dx.map(|v| v / dist);
+                } else {
+                    // Coincident centres: separate along a random direction.
+                    let q = random_rotation(&mut rng);
+                    dx = [q[1], q[2], q[3]];
+                    let l = dx.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+                    dx = dx.map(|v| v / l);
+                }
+                let push = 0.5 * (PUSH_FACTOR * (reach - dist) + PUSH_EXTRA * reach);
+                for (k, u) in dx.iter().enumerate() {
+                    placed[i].center[k] -= push * u;
+                    placed[j].center[k] += push * u;
+                }
+                regions[i].project(&mut placed[i].center);
+                regions[j].project(&mut placed[j].center);
+            }
+        }
+        if worst.is_none() {
+            return Ok(placed);
+        }
+    }
+    // Still overlapping: report the largest overlap of a fresh check.
+    let (mut worst, mut who) = (0.0, 0);
+    for (i, a) in placed.iter().enumerate() {
+        for b in &placed[i + 1..] {
+            let reach = 0.5 * (a.diameter + b.diameter) + clearance;
+            let dist = (0..3)
+                .map(|k| (b.center[k] - a.center[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if reach - dist > worst && dist < reach * (1.0 - SEPARATED) {
+                (worst, who) = (reach - dist, i);
+            }
+        }
+    }
+    Err(NoRoom {
+        particle: who,
+        diameter: placed[who].diameter,
+    })
+}
+
+/// Where the centre of a sphere may lie: within `radial` of the axis, between `z0` and `z1`.
+#[derive(Clone, Copy, Debug)]
+struct Region {
+    radial: f64,
+    z0: f64,
+    z1: f64,
+}
+
+impl Region {
+    /// The region of a sphere of radius `r` kept `clearance` inside `column`; `None` when
+    /// the sphere does not fit.
+    fn of(column: &Column, r: f64, clearance: f64) -> Option<Region> {
+        let radial = column.radius - r - clearance;
+        let (z0, z1) = (column.bottom + r + clearance, column.top - r - clearance);
+        (radial >= 0.0 && z1 >= z0).then_some(Region { radial, z0, z1 })
+    }
+
+    /// Moves `x` to the nearest point of the region.
+    fn project(&self, x: &mut [f64; 3]) {
+        let rho = x[0].hypot(x[1]);
+        if rho > self.radial {
+            let s = self.radial / rho;
+            x[0] *= s;
+            x[1] *= s;
+        }
+        x[2] = x[2].clamp(self.z0, self.z1);
+    }
 }

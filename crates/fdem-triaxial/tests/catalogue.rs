@@ -144,7 +144,9 @@ fn count_rule_matches_the_hand_computation_of_the_docs() {
 
 #[test]
 fn a_total_particle_count_is_shared_by_mass_fraction_over_particle_volume() {
-    let text = USER_GRADATION.replace("solid_fraction = 0.60", "particles = 1000");
+    // 1000 particles fill only 0.37 of the specimen: the loose column must be looser.
+    let text = USER_GRADATION.replace("solid_fraction = 0.60", "particles = 1000")
+        + "[preparation]\nloose_solid_fraction = 0.3\n";
     let c = SpecimenSpec::from_toml_str(&text, "count")
         .unwrap()
         .counts()

@@ -31,15 +31,17 @@ normal_penalty = 1.0e9
 [mesh]
 level = 0
 order = "linear"
+
+# A loose start (the old random sequential placement's): over 1000 compaction steps.
+[preparation]
+loose_solid_fraction = 0.25
 "#;
 
 /// The same specimen under gravity (50 m/s^2, to settle quickly) with friction during
 /// preparation: it ends as a pile on the bottom platen with sticking contacts, so the
 /// friction history is not trivial.
 fn gravity_text() -> String {
-    format!(
-        "{SMALL}\n[preparation]\nfriction = 0.3\ngravity = [0.0, 0.0, -50.0]\nsettle_time = 0.3\n"
-    )
+    format!("{SMALL}friction = 0.3\ngravity = [0.0, 0.0, -50.0]\nsettle_time = 0.3\n")
 }
 
 fn small() -> &'static PreparedSpecimen {
@@ -68,7 +70,16 @@ fn compaction_reaches_the_target_height_with_the_solid_fraction_it_implies() {
     // The platens closed by exactly the loose height minus the target.
     let travel = r.platen_speed * r.dt * r.compact_steps as f64;
     assert!((travel - (r.loose_height - spec.height)).abs() < 1e-12 * r.loose_height);
-    assert!(r.loose_height > 2.0 * spec.height);
+    // The placement reached the requested loose fraction (the column did not grow): the
+    // loose height is the one it implies, rounded up to a whole number of steps.
+    let solids = r.particles as f64 * sphere_volume(0.02);
+    let requested = solids / (spec.preparation.loose_solid_fraction * spec.inner_area());
+    let step = r.platen_speed * r.dt;
+    assert!(
+        r.loose_height >= requested * (1.0 - 1e-12) && r.loose_height < requested + step,
+        "loose column {} m, requested {requested} m",
+        r.loose_height
+    );
     // The walls of the prepared configuration: cylinder, platens at z = 0 and z = H.
     let scene = s.scene().unwrap();
     assert_eq!(scene.walls[WALL_CYLINDER].radius, Some(spec.inner_radius()));

@@ -122,10 +122,18 @@ fn single_linear_tet_bound_matches_power_iteration_and_wave_speed_estimate() {
 
 fn stability_run(mesh: &Mesh, factor: f64, steps: usize) -> (f64, bool) {
     let set = mesh.element_set();
-    let (omega2, mode) = top_mode(&set);
+    let (omega2, _) = top_mode(&set);
     // A single free element: its own bound is the system's bound, exactly.
     let dt_exact = 2.0 / omega2.sqrt();
     assert!(((set.stable_time_step() - dt_exact) / dt_exact).abs() < 1e-10);
+    top_mode_run(mesh, factor * set.stable_time_step(), steps)
+}
+
+/// Central differences at step `dt` from the top mode at a tiny amplitude: the largest
+/// displacement over the amplitude, and whether the integration failed.
+fn top_mode_run(mesh: &Mesh, dt: f64, steps: usize) -> (f64, bool) {
+    let set = mesh.element_set();
+    let (_, mode) = top_mode(&set);
     let amp = 1e-8 * 5e-3; // 1e-8 of the element size: linear regime
     let mut x: Vec<[f64; 3]> = mesh
         .nodes
@@ -136,22 +144,15 @@ fn stability_run(mesh: &Mesh, factor: f64, steps: usize) -> (f64, bool) {
     let mut v = vec![[0.0; 3]; x.len()];
     let mut max_disp: f64 = 0.0;
     let rest = mesh.nodes.clone();
-    let r = integrate(
-        &set,
-        &mut x,
-        &mut v,
-        factor * set.stable_time_step(),
-        steps,
-        |x, _| {
-            let d = x
-                .iter()
-                .zip(&rest)
-                .map(|(a, b)| norm(sub(*a, *b)))
-                .fold(0.0, f64::max);
-            max_disp = max_disp.max(d);
-            max_disp < 1e6 * amp
-        },
-    );
+    let r = integrate(&set, &mut x, &mut v, dt, steps, |x, _| {
+        let d = x
+            .iter()
+            .zip(&rest)
+            .map(|(a, b)| norm(sub(*a, *b)))
+            .fold(0.0, f64::max);
+        max_disp = max_disp.max(d);
+        max_disp < 1e6 * amp
+    });
     (max_disp / amp, r.is_err())
 }
 
@@ -304,4 +305,50 @@ fn free_vibrating_tumbling_element_conserves_energy() {
         assert!(dev_fine < dev / 50.0, "{dev_fine} vs {dev}");
         assert!(drift_fine.abs() < 1e-5, "{drift_fine}");
     }
+}
+
+/// The power-iteration estimate of the assembled bound against the dense eigenvalue
+/// problem of the whole body: within 0.1 % and never above it (it uses the Rayleigh
+/// quotient plus the residual), for a single element (where it equals the element bound)
+/// and for assembled cubes, linear and quadratic; and a run at 0.95 x the estimate stays
+/// bounded while 1.05 x diverges.
+#[test]
+fn assembled_step_matches_the_dense_eigenvalue_problem() {
+    for quadratic in [false, true] {
+        for mesh in [single_tet(quadratic), kuhn_cube(2, 1e-2, quadratic)] {
+            let set = mesh.element_set();
+            let (omega2, _) = top_mode(&set);
+            let exact = 2.0 / omega2.sqrt();
+            let est = set.assembled_time_step();
+            let rel = est.time_step / exact - 1.0;
+            println!(
+                "quadratic={quadratic}, {} elements: assembled {:.6e} s, dense {exact:.6e} s \
+                 ({rel:+.2e}), element bound {:.6e} s, {} iterations",
+                set.n_elements(),
+                est.time_step,
+                est.element_time_step,
+                est.iterations
+            );
+            assert!(rel <= 1e-9 && rel > -1e-3, "{rel}");
+            assert!(est.time_step >= est.element_time_step);
+            assert_eq!(est.element_time_step, set.stable_time_step());
+        }
+        let mesh = kuhn_cube(2, 1e-2, quadratic);
+        let set = mesh.element_set();
+        let dt = set.assembled_time_step().time_step;
+        let (below, _) = top_mode_run(&mesh, 0.95 * dt, 4000);
+        let (above, failed) = top_mode_run(&mesh, 1.05 * dt, 4000);
+        println!("quadratic={quadratic}: growth at 0.95 x {below:.3e}, at 1.05 x {above:.3e}");
+        assert!(below < 20.0, "0.95 x the assembled bound grew {below}");
+        assert!(
+            failed || above >= 1e6,
+            "1.05 x the assembled bound grew only {above}"
+        );
+    }
+}
+
+#[test]
+fn assembled_step_of_an_empty_set_is_infinite() {
+    let set = ElementSet::new(&rock(), 4, &[], &[]).unwrap();
+    assert_eq!(set.assembled_time_step().time_step, f64::INFINITY);
 }
