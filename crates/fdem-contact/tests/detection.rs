@@ -32,29 +32,18 @@ fn distance_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
     segment(a, b).min(segment(b, c)).min(segment(c, a))
 }
 
-/// Every (surface node, other body's triangle) pair within `e` of each other where the
-/// node is behind the triangle's plane or within `front` of the triangle.
-fn brute_force(
+/// Every (surface node, other body's triangle) pair, brute force over all pairs, for which
+/// `keep(node position, triangle corners)` holds.
+fn pairs_where(
     assembly: &MeshAssembly,
     x: &[[f64; 3]],
-    e: f64,
-    front: f64,
+    keep: impl Fn([f64; 3], [[f64; 3]; 3]) -> bool,
 ) -> BTreeSet<(usize, usize)> {
     let mut out = BTreeSet::new();
     for (b, range) in assembly.bodies.iter().enumerate() {
         for &node in &assembly.surface_nodes[range.surface_nodes.clone()] {
-            let p = x[node];
             for (t, tri) in assembly.triangles.iter().enumerate() {
-                if assembly.triangle_body[t] as usize == b {
-                    continue;
-                }
-                let face = tri.map(|i| x[i]);
-                let d = distance_to_triangle(p, face);
-                let behind = dot(
-                    cross(sub(face[1], face[0]), sub(face[2], face[0])),
-                    sub(p, face[0]),
-                ) < 0.0;
-                if d <= e && (behind || d <= front) {
+                if assembly.triangle_body[t] as usize != b && keep(x[node], tri.map(|i| x[i])) {
                     out.insert((node, t));
                 }
             }
@@ -63,36 +52,37 @@ fn brute_force(
     out
 }
 
-/// Every (surface node, other body's triangle) pair where the node is behind the
-/// triangle's plane by at most `depth` with its foot inside the triangle (a face contact
-/// the narrow phase can report).
+/// Pairs within `e` of each other where the node is behind the triangle's plane or within
+/// `front` of the triangle.
+fn brute_force(
+    assembly: &MeshAssembly,
+    x: &[[f64; 3]],
+    e: f64,
+    front: f64,
+) -> BTreeSet<(usize, usize)> {
+    pairs_where(assembly, x, |p, [a, b, c]| {
+        let d = distance_to_triangle(p, [a, b, c]);
+        let behind = dot(cross(sub(b, a), sub(c, a)), sub(p, a)) < 0.0;
+        d <= e && (behind || d <= front)
+    })
+}
+
+/// Pairs where the node is behind the triangle's plane by at most `depth` with its foot
+/// inside the triangle (a face contact the narrow phase can report).
 fn contact_capable(
     assembly: &MeshAssembly,
     x: &[[f64; 3]],
     depth: f64,
 ) -> BTreeSet<(usize, usize)> {
-    let mut out = BTreeSet::new();
-    for (b, range) in assembly.bodies.iter().enumerate() {
-        for &node in &assembly.surface_nodes[range.surface_nodes.clone()] {
-            let p = x[node];
-            for (t, tri) in assembly.triangles.iter().enumerate() {
-                if assembly.triangle_body[t] as usize == b {
-                    continue;
-                }
-                let [a, bb, c] = tri.map(|i| x[i]);
-                let n = cross(sub(bb, a), sub(c, a));
-                let nn = dot(n, n);
-                let ap = sub(p, a);
-                let wb = dot(cross(ap, sub(c, a)), n) / nn;
-                let wc = dot(cross(sub(bb, a), ap), n) / nn;
-                let signed = dot(ap, n) / nn.sqrt();
-                if wb >= 0.0 && wc >= 0.0 && wb + wc <= 1.0 && signed < 0.0 && -signed <= depth {
-                    out.insert((node, t));
-                }
-            }
-        }
-    }
-    out
+    pairs_where(assembly, x, |p, [a, b, c]| {
+        let n = cross(sub(b, a), sub(c, a));
+        let nn = dot(n, n);
+        let ap = sub(p, a);
+        let wb = dot(cross(ap, sub(c, a)), n) / nn;
+        let wc = dot(cross(sub(b, a), ap), n) / nn;
+        let signed = dot(ap, n) / nn.sqrt();
+        wb >= 0.0 && wc >= 0.0 && wb + wc <= 1.0 && signed < 0.0 && -signed <= depth
+    })
 }
 
 /// A cluster of `n` spheres of diameter `d`: each new one is placed next to a random

@@ -13,7 +13,7 @@ const NODE_CHUNK: usize = 4096;
 pub enum TimeStep {
     /// A fixed step (s), used as given even above the stable bound (the guard watches).
     Fixed(f64),
-    /// `safety x` the smallest stable bound of all contributions.
+    /// `safety x` the stable bound ([`Simulation::bound`]).
     Automatic {
         /// Fraction of the bound, in (0, 1].
         safety: f64,
@@ -92,7 +92,9 @@ pub struct Simulation {
     pub step: u64,
     /// The step size in use (s).
     pub dt: f64,
-    /// The smallest stable bound of all contributions and what sets it.
+    /// The stable bound and what sets it: the elastic bound (each body's assembled bound)
+    /// combined with the contact springs' ([`StepBound::combined`]), or any other
+    /// contribution's bound if smaller.
     pub bound: StepBound,
     /// Stability guard settings.
     pub guard: Guard,

@@ -344,8 +344,9 @@ impl TestModel {
     /// Builds the test around a prepared specimen: the particles as prepared (state,
     /// friction history against particles and platens), the test's contact law, the
     /// membrane under the confining pressure, the platens fixed where preparation left
-    /// them, and the step `dt` (unless given, `test.dt_safety` times the smallest stable
-    /// bound of the assembled test: elements, contact springs, membrane elements).
+    /// them, and the step `dt` (unless given, `test.dt_safety` times the stable bound of
+    /// the assembled test: the particles' assembled elastic bound combined with the contact
+    /// springs, or the membrane elements' bound if smaller).
     pub fn build(prepared: &PreparedSpecimen, dt: Option<f64>) -> Result<TestModel, TriaxialError> {
         let spec = &prepared.spec;
         let simulated = spec.simulated()?;

@@ -315,9 +315,9 @@ fn scene(
     })
 }
 
-/// The time step of a specimen: `dt_safety` times the smallest stable bound of one
-/// particle of each simulated size (the bounds are per particle: element eigenvalues and
-/// per-node contact springs), with the returned bound and its source.
+/// The time step of a specimen: `dt_safety` times the stable bound of one particle of
+/// each simulated size (the bounds are per particle: the assembled elastic bound combined
+/// with the per-node contact springs), with the returned bound and its source.
 pub fn specimen_time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), TriaxialError> {
     let sizes = spec.simulated()?.sizes;
     let d_max = sizes.iter().copied().fold(0.0, f64::max);

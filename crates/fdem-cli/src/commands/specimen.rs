@@ -85,7 +85,12 @@ pub struct PreparationProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
     interrupt: Arc<AtomicBool>,
+    /// The compaction's planned steps and start, until its cost estimate is printed.
+    compaction: Option<(u64, std::time::Instant)>,
 }
+
+/// Steps of compaction timed before its cost estimate is printed.
+const ESTIMATE_AFTER_STEPS: u64 = 1000;
 
 impl PreparationProgress {
     /// A reporter that draws bars when `terminal` and stops when `interrupt` is set.
@@ -94,6 +99,7 @@ impl PreparationProgress {
             bar: None,
             terminal,
             interrupt,
+            compaction: None,
         }
     }
 
@@ -110,7 +116,10 @@ impl Observer for PreparationProgress {
         self.finish();
         match phase {
             Phase::Place => eprintln!("place: random loose packing"),
-            Phase::Compact => eprintln!("compact: {planned_steps} steps"),
+            Phase::Compact => {
+                eprintln!("compact: {planned_steps} steps");
+                self.compaction = Some((planned_steps, std::time::Instant::now()));
+            }
             Phase::Settle => eprintln!("settle: at most {planned_steps} steps"),
         }
         if self.terminal && planned_steps > 0 {
@@ -118,7 +127,23 @@ impl Observer for PreparationProgress {
         }
     }
 
-    fn progress(&mut self, _phase: Phase, status: &Status) -> bool {
+    fn progress(&mut self, phase: Phase, status: &Status) -> bool {
+        // The compaction is most of a preparation: its cost, once measured.
+        if phase == Phase::Compact
+            && status.step >= ESTIMATE_AFTER_STEPS
+            && let Some((planned, start)) = self.compaction.take()
+        {
+            let per_step = start.elapsed().as_secs_f64() / status.step as f64;
+            let line = format!(
+                "compact: {:.2} ms per step, about {:.0} s for the compaction",
+                1e3 * per_step,
+                per_step * planned as f64
+            );
+            match &self.bar {
+                Some(bar) => bar.println(line),
+                None => eprintln!("{line}"),
+            }
+        }
         if let Some(bar) = &self.bar {
             bar.set_position(status.step);
             let mut msg = format!(
