@@ -154,6 +154,7 @@ pub fn place_spheres(
     let d_max = diameters.iter().map(|d| d.0).fold(0.0, f64::max);
     let mut rng = Pcg64::seed_from_u64(seed);
     let mut placed: Vec<PlacedParticle> = Vec::with_capacity(diameters.len());
+    let mut regions: Vec<Region> = Vec::with_capacity(diameters.len());
     for (n, &i) in order.iter().enumerate() {
         let (d, class) = diameters[i];
         let region = Region::of(column, 0.5 * d, clearance).ok_or(NoRoom {
@@ -174,12 +175,8 @@ pub fn place_spheres(
             orientation: random_rotation(&mut rng),
             class,
         });
+        regions.push(region);
     }
-    let regions: Vec<Region> = placed
-        .iter()
-        .map(|p| Region::of(column, 0.5 * p.diameter, clearance))
-        .collect::<Option<_>>()
-        .unwrap_or_default();
     let mut near: Vec<u32> = Vec::new();
     for _ in 0..MAX_SWEEPS {
         let mut grid = Grid::new(column, d_max + clearance);
