@@ -30,8 +30,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// kinetic energy stays at a few joules (docs/TRIAXIAL.md, "Energy balance"; the source is
 /// not isolated yet). The largest drift measured in one window was 0.14 of the window's
 /// energy scale (E4s shear, 1,700 steps); an instability grows by orders of magnitude in
-/// a window (a step 2.5 times the bound stops the quick test's model at step 4, through
-/// the contact's tunnelling guard).
+/// a window (a step 2.5 times the element bound stopped the quick test's model at step 4,
+/// through the contact's tunnelling guard).
 pub const TEST_ENERGY_TOLERANCE: f64 = 0.5;
 
 /// Default depth limit of the test's contacts, in contact margins (`[contact]
