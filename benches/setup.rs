@@ -47,12 +47,7 @@ fn placement(c: &mut Criterion) {
     for name in ["E4s", "E3", "B3s"] {
         let spec = Preset::find(name).expect("preset").spec();
         let counts = spec.counts().expect("counts");
-        let diameters: Vec<(f64, usize)> = counts
-            .classes
-            .iter()
-            .enumerate()
-            .flat_map(|(i, k)| std::iter::repeat_n((k.diameter, i), k.particles as usize))
-            .collect();
+        let diameters = counts.diameters();
         let d_min = counts
             .classes
             .iter()

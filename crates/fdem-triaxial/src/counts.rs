@@ -43,6 +43,18 @@ pub struct Counts {
     pub solid_fraction: f64,
 }
 
+impl Counts {
+    /// Every particle as (simulated diameter, size class), class by class: the list
+    /// [`crate::place_spheres`] takes.
+    pub fn diameters(&self) -> Vec<(f64, usize)> {
+        self.classes
+            .iter()
+            .enumerate()
+            .flat_map(|(i, c)| std::iter::repeat_n((c.diameter, i), c.particles as usize))
+            .collect()
+    }
+}
+
 /// Particles per size class (gradation order). With a solid fraction `phi`:
 /// `n_i = floor(V_s f_i / (pi d_i^3 / 6))`, `V_s = phi pi r^2 H` with `r` the inner radius
 /// and `d_i` the simulated diameter. With a total count `N`: `N` shared in proportion to

@@ -45,8 +45,8 @@ pub struct Column {
     pub top: f64,
 }
 
-/// Why a placement failed: a particle (in placement order) still overlapping after the last
-/// sweep, or that does not fit the column at all.
+/// Why a placement failed: the particle (in placement order) of the largest overlap found
+/// by the last sweep, or one that does not fit the column at all.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NoRoom {
     /// Index in placement order.
@@ -178,6 +178,7 @@ pub fn place_spheres(
         regions.push(region);
     }
     let mut near: Vec<u32> = Vec::new();
+    let mut last_worst = 0;
     for _ in 0..MAX_SWEEPS {
         let mut grid = Grid::new(column, d_max + clearance);
         for (id, p) in placed.iter().enumerate() {
@@ -224,27 +225,15 @@ pub fn place_spheres(
                 regions[j].project(&mut placed[j].center);
             }
         }
-        if worst.is_none() {
-            return Ok(placed);
+        match worst {
+            None => return Ok(placed),
+            Some((_, i)) => last_worst = i,
         }
     }
-    // Still overlapping: report the largest overlap of a fresh check.
-    let (mut worst, mut who) = (0.0, 0);
-    for (i, a) in placed.iter().enumerate() {
-        for b in &placed[i + 1..] {
-            let reach = 0.5 * (a.diameter + b.diameter) + clearance;
-            let dist = (0..3)
-                .map(|k| (b.center[k] - a.center[k]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            if reach - dist > worst && dist < reach * (1.0 - SEPARATED) {
-                (worst, who) = (reach - dist, i);
-            }
-        }
-    }
+    // Still overlapping: the particle of the largest overlap the last sweep found.
     Err(NoRoom {
-        particle: who,
-        diameter: placed[who].diameter,
+        particle: last_worst,
+        diameter: placed[last_worst].diameter,
     })
 }
 

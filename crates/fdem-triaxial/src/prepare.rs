@@ -718,12 +718,7 @@ pub fn prepare(
 
     // Placement: the column's extra height is a whole number of steps of platen travel.
     observer.phase(Phase::Place, 0);
-    let diameters: Vec<(f64, usize)> = counts
-        .classes
-        .iter()
-        .enumerate()
-        .flat_map(|(i, c)| std::iter::repeat_n((c.diameter, i), c.particles as usize))
-        .collect();
+    let diameters = counts.diameters();
     let mut compact_steps = 0u64;
     let (particles, column) = place(spec, &diameters, prep.clearance * d_min, |loose_height| {
         let wanted = (loose_height - spec.height).max(0.0);

@@ -364,12 +364,7 @@ fn placement_of(
     loose: f64,
 ) -> (Vec<fdem_triaxial::PlacedParticle>, Column, f64) {
     let c = spec.counts().unwrap();
-    let diameters: Vec<(f64, usize)> = c
-        .classes
-        .iter()
-        .enumerate()
-        .flat_map(|(i, k)| std::iter::repeat_n((k.diameter, i), k.particles as usize))
-        .collect();
+    let diameters = c.diameters();
     let height = c.solid_volume / (loose * spec.inner_area());
     let column = Column {
         radius: spec.inner_radius(),
