@@ -245,15 +245,15 @@ impl BroadPhase {
     /// A pair (node, face of another body) is a candidate when the node is within
     /// `skin + depth_limit` of the face (plus the tolerance band) and either behind the
     /// face's plane, or within [`FRONT_SKINS`] skins of the face (plus the band), or the
-    /// face belongs to a body flagged in `two_sided` (sheets, whose edges also make
-    /// contacts and whose edge filter looks at faces in front).
+    /// face's body is `two_sided` (sheets, whose edges also make contacts and whose edge
+    /// filter looks at faces in front).
     pub(crate) fn build(
         &mut self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
         skin: f64,
         depth_limit: f64,
-        two_sided: &[bool],
+        two_sided: impl Fn(u32) -> bool + Sync,
     ) {
         let reach = skin + depth_limit;
         let n_surface = surface.surface_nodes.len();
@@ -428,9 +428,7 @@ impl BroadPhase {
                             let face = surface.triangles[tu].map(|i| positions[i]);
                             let d2 = distance2_to_triangle(x, face);
                             if d2 <= reach2
-                                && (d2 <= front2
-                                    || two_sided.get(owner as usize).copied().unwrap_or(false)
-                                    || behind_plane(x, face))
+                                && (d2 <= front2 || two_sided(owner) || behind_plane(x, face))
                             {
                                 tris.push(t);
                             }

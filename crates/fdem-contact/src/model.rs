@@ -804,14 +804,11 @@ impl ContactModel {
         }
         let rebuild = self.rebuild_requested || !self.broad.built || scan.max_drift2 > half * half;
         if rebuild {
-            let two_sided: Vec<bool> = self.sheets.iter().map(|f| f & SHEET != 0).collect();
-            self.broad.build(
-                positions,
-                &self.surface,
-                margin,
-                self.depth_limit,
-                &two_sided,
-            );
+            let sheets = &self.sheets;
+            self.broad
+                .build(positions, &self.surface, margin, self.depth_limit, |body| {
+                    sheets.get(body as usize).is_some_and(|f| f & SHEET != 0)
+                });
             self.rebuild_requested = false;
         }
         let check_faces = 2.0 * v_max * dt > half;
