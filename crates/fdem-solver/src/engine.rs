@@ -129,13 +129,13 @@ impl Simulation {
                 .filter(|c| c.as_contact().is_some())
                 .map(|c| c.stable_time_step()),
         );
-        let bound = StepBound::smallest(
-            std::iter::once(StepBound::combined(elastic.stable_time_step(), contact)).chain(
-                contributions
-                    .iter()
-                    .filter(|c| c.as_contact().is_none())
-                    .map(|c| c.stable_time_step()),
-            ),
+        let bound = StepBound::of_model(
+            elastic.stable_time_step(),
+            contact,
+            contributions
+                .iter()
+                .filter(|c| c.as_contact().is_none())
+                .map(|c| c.stable_time_step()),
         )
         .unwrap_or(StepBound {
             dt: f64::INFINITY,

@@ -459,10 +459,11 @@ impl TestModel {
             .map_err(|e| setup(e.to_string()))?;
         let contact = fdem_solver::ContactForces::new(model);
         // The bound the simulation will compute (damping and rings impose none).
-        let bound = StepBound::smallest([
-            StepBound::combined(elastic.stable_time_step(), contact.stable_time_step()),
-            membrane.stable_time_step(),
-        ])
+        let bound = StepBound::of_model(
+            elastic.stable_time_step(),
+            contact.stable_time_step(),
+            [membrane.stable_time_step()],
+        )
         .ok_or_else(|| setup("nothing bounds the time step"))?;
         let dt = dt.unwrap_or(spec.test.dt_safety * bound.dt);
         let top_ring: Vec<usize> = mesh.top_ring.iter().map(|i| i + first).collect();
