@@ -28,7 +28,8 @@ fn simulation(n: usize, order: &str) -> Simulation {
     }
     let scene = Scene::from_toml_str(&text, "bench").expect("bench scene");
     let mut sim = scene.build().expect("bench scene builds");
-    for (v, x) in sim.state.velocities.iter_mut().zip(&sim.state.positions) {
+    let nodes = sim.nodes_mut();
+    for (v, x) in nodes.velocities.iter_mut().zip(nodes.positions.iter()) {
         for k in 0..3 {
             v[k] += 0.01 * (x[k] * 1e3).sin();
         }
@@ -49,7 +50,7 @@ fn bench(c: &mut Criterion) {
                 .build()
                 .expect("thread pool");
             let mut sim = pool.install(|| simulation(particles, order));
-            let tets: usize = sim.bodies.iter().map(|b| b.elements.len()).sum();
+            let tets: usize = sim.bodies().iter().map(|b| b.elements.len()).sum();
             group.throughput(Throughput::Elements(tets as u64));
             group.bench_function(BenchmarkId::new(format!("{order}_{threads}t"), tets), |b| {
                 b.iter(|| pool.install(|| black_box(&mut sim).advance().expect("stable")))

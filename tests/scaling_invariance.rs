@@ -147,7 +147,7 @@ struct Observed {
 /// that the `time` and `time_step` rows of Table 1 are exercised by the scaling).
 fn run(scene: &Scene) -> Observed {
     let mut sim: Simulation = scene.build().expect("builds");
-    let steps = step_count(scene.simulation.duration, sim.dt);
+    let steps = step_count(scene.simulation.duration, sim.dt());
     let mut contacts = 0;
     for _ in 0..steps {
         sim.advance().expect("stable");
@@ -155,11 +155,11 @@ fn run(scene: &Scene) -> Observed {
     }
     let e = sim.energy();
     Observed {
-        positions: sim.state.positions.clone(),
-        velocities: sim.state.velocities.clone(),
+        positions: sim.state().positions.clone(),
+        velocities: sim.state().velocities.clone(),
         wall_forces: sim
             .contact()
-            .map_or(vec![], |c| c.model.wall_forces().to_vec()),
+            .map_or(vec![], |c| c.model().wall_forces().to_vec()),
         energies: [
             e.kinetic,
             e.strain,
@@ -167,7 +167,7 @@ fn run(scene: &Scene) -> Observed {
             e.external_work,
             e.dissipated,
         ],
-        stresses: sim.elastic.stresses(&sim.state.positions).unwrap(),
+        stresses: sim.elastic().stresses(&sim.state().positions).unwrap(),
         contacts,
         steps,
     }
@@ -182,7 +182,7 @@ fn run_pair_with(
     steps: usize,
     tamper: impl Fn(&Scene, &mut Scene),
 ) -> (Observed, Observed) {
-    let dt = original.build().expect("builds").dt;
+    let dt = original.build().expect("builds").dt();
     let mut original = original.clone();
     original.simulation.dt = Some(dt);
     original.simulation.duration = steps as f64 * dt;

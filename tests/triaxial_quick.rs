@@ -42,7 +42,8 @@ fn quick_triaxial_test_runs_end_to_end() {
     // 2.5 times its stable bound stops with an `unstable integration` error (measured:
     // at step 4, the contact's tunnelling guard, before the energy check's first window).
     let mut model = TestModel::build(&prepared, None).expect("the test model builds");
-    model.sim.dt = 2.5 * model.sim.bound.dt;
+    let unstable = 2.5 * model.sim.bound().dt;
+    model.sim.set_dt(unstable).unwrap();
     let tripped = (1..=4096).find_map(|step| model.sim.advance().err().map(|e| (step, e)));
     let (step, error) = tripped.expect("an unstable step is caught");
     eprintln!("unstable step caught at step {step}: {error}");

@@ -67,6 +67,39 @@ impl ContactSurface {
         Ok(surface)
     }
 
+    /// Appends the surface of body `body`: its outward `triangles` and `surface_nodes`
+    /// (global node ids) with their `control_areas` (parallel to `surface_nodes`, m^2).
+    /// The invariants are checked by [`ContactSurface::validate`] when a contact model is
+    /// built on the surface.
+    ///
+    /// # Errors
+    /// [`ContactError::LengthMismatch`] when `control_areas` and `surface_nodes` differ in
+    /// length.
+    pub fn push_body(
+        &mut self,
+        body: u32,
+        triangles: &[[usize; 3]],
+        surface_nodes: &[usize],
+        control_areas: &[f64],
+    ) -> Result<(), ContactError> {
+        if control_areas.len() != surface_nodes.len() {
+            return Err(ContactError::LengthMismatch {
+                array: "control_areas",
+                expected: surface_nodes.len(),
+                found: control_areas.len(),
+                reason: "one control area per surface node",
+            });
+        }
+        self.triangles.extend_from_slice(triangles);
+        self.triangle_body
+            .extend(std::iter::repeat_n(body, triangles.len()));
+        self.surface_nodes.extend_from_slice(surface_nodes);
+        self.node_body
+            .extend(std::iter::repeat_n(body, surface_nodes.len()));
+        self.control_areas.extend_from_slice(control_areas);
+        Ok(())
+    }
+
     /// Number of surface nodes.
     pub fn n_surface_nodes(&self) -> usize {
         self.surface_nodes.len()

@@ -1,14 +1,36 @@
-//! Bodies: contiguous node and element ranges, and their rigid-body summaries.
+//! Bodies: contiguous node and element ranges of one kind, and their rigid-body
+//! summaries.
 
 use crate::NodeState;
 use std::ops::Range;
 
-/// One deformable body (a particle) of the simulation.
+/// What a body is, and so which parts of the engine move it.
+///
+/// Every kind owns a contiguous range of nodes; the engine integrates all nodes alike and
+/// each kind differs only in where its forces come from. A new kind (a rigid particle) is
+/// one more variant here and one more `add_*` of [`crate::ModelBuilder`], not a special
+/// case in the contributions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BodyKind {
+    /// A particle meshed with tetrahedra that deform elastically (docs/MODEL.md
+    /// section 3): its elements are part of the elastic forces and its outward faces part
+    /// of the contact surface.
+    Deformable,
+    /// A thin sheet (the triaxial membrane): nodes with masses and contact faces, but no
+    /// tetrahedra; its in-plane forces come from a force contribution of its own, and the
+    /// contact model treats its faces as a sheet (one side, no volume behind them).
+    Sheet,
+}
+
+/// One body of the simulation: a contiguous node range (and element range for deformable
+/// particles).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Body {
+    /// What kind of body this is.
+    pub kind: BodyKind,
     /// Global node ids.
     pub nodes: Range<usize>,
-    /// Global element ids.
+    /// Global element ids (empty for bodies without tetrahedra).
     pub elements: Range<usize>,
 }
 
@@ -28,6 +50,12 @@ pub struct BodyMotion {
 }
 
 impl Body {
+    /// True for the bodies that are grains of the granular material (deformable particles
+    /// today; rigid ones too once they exist), false for boundaries such as a membrane.
+    pub fn is_particle(&self) -> bool {
+        matches!(self.kind, BodyKind::Deformable)
+    }
+
     /// Rigid-body summary from the node state: centroid, momentum / mass, angular momentum
     /// about the centroid and the angular velocity that inertia tensor maps it from.
     pub fn motion(&self, state: &NodeState) -> BodyMotion {
@@ -129,6 +157,7 @@ mod tests {
             *v = [u[0] + 2.0, u[1], u[2]];
         }
         let body = Body {
+            kind: BodyKind::Sheet,
             nodes: 0..6,
             elements: 0..0,
         };

@@ -1,15 +1,19 @@
-//! Contact as a force contribution: a thin adapter from `fdem-contact`'s [`ContactModel`]
-//! to the engine's [`ForceContribution`] interface.
+//! Contact as a part of the engine: a thin adapter from `fdem-contact`'s [`ContactModel`]
+//! to the engine's step (forces, powers, stored energy, stable step).
 
 use crate::SolverError;
-use crate::forces::{ForceContribution, NodeView, Powers, StepBound};
+use crate::forces::{NodeView, Powers, StepBound};
 use fdem_contact::{ContactModel, ContactReport};
 
-/// Penalty contact between particles and with rigid walls (MODEL.md section 2).
+/// Penalty contact between particles, with sheets and with rigid walls (docs/MODEL.md
+/// section 2).
+///
+/// Contact is a stage of every step, not a plug-in contribution: its springs act on the
+/// same surface nodes as the elements, so its stable bound combines with the elastic one
+/// ([`StepBound::of_model`]), and outputs read its contacts.
 #[derive(Debug)]
 pub struct ContactForces {
-    /// The contact model: detection, law, history, wall forces, snapshots.
-    pub model: ContactModel,
+    model: ContactModel,
     last: ContactReport,
 }
 
@@ -22,25 +26,32 @@ impl ContactForces {
         }
     }
 
+    /// The contact model: detection, law, history, wall forces, snapshots.
+    pub fn model(&self) -> &ContactModel {
+        &self.model
+    }
+
+    /// The contact model, mutable: move a wall, restore friction history between steps.
+    pub fn model_mut(&mut self) -> &mut ContactModel {
+        &mut self.model
+    }
+
     /// The report of the last evaluation (contacts, energies, deepest penetration).
     pub fn last_report(&self) -> &ContactReport {
         &self.last
     }
-}
 
-impl ForceContribution for ContactForces {
-    fn name(&self) -> &str {
-        "contact"
-    }
-
-    fn stable_time_step(&self) -> Option<StepBound> {
+    /// The contact springs' stable step and the node that sets it.
+    pub fn stable_time_step(&self) -> Option<StepBound> {
         self.model.stable_time_step().map(|s| StepBound {
             dt: s.time_step,
             source: format!("contact: body {}, node {}", s.body, s.node),
         })
     }
 
-    fn add_forces(
+    /// Adds the contact forces at `nodes` to `forces` (N) and returns the powers of the
+    /// walls (external), the dashpots (damping) and friction sliding over the step.
+    pub fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
@@ -61,15 +72,8 @@ impl ForceContribution for ContactForces {
         Ok(powers)
     }
 
-    fn potential_energy(&self, _nodes: NodeView<'_>) -> f64 {
+    /// Energy stored in the contact springs (J).
+    pub fn potential_energy(&self) -> f64 {
         self.model.stored_energy()
-    }
-
-    fn as_contact(&self) -> Option<&ContactForces> {
-        Some(self)
-    }
-
-    fn as_contact_mut(&mut self) -> Option<&mut ContactForces> {
-        Some(self)
     }
 }

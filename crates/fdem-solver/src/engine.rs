@@ -1,9 +1,13 @@
 //! The explicit central-difference (velocity-Verlet) engine with energy bookkeeping and
 //! a stability guard.
 
-use crate::forces::{ElasticForces, ForceContribution, NodeView, Powers, StepBound};
-use crate::{Body, NodeState, SolverError};
+use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
+use crate::model::{ConstraintHandle, Handle};
+use crate::{Body, ContactForces, NodeState, SolverError};
 use rayon::prelude::*;
+use std::any::Any;
+
+const FOREIGN_HANDLE: &str = "a handle of another model was used with this simulation";
 
 /// Nodes per parallel task in the node-update loops.
 const NODE_CHUNK: usize = 4096;
@@ -70,110 +74,98 @@ pub struct EnergyReport {
     pub balance_error: f64,
 }
 
-/// A deformable-particle system advanced by explicit central differences.
+/// The contributions and constraints of a model, stored behind typed handles.
+pub(crate) struct Parts {
+    pub(crate) contributions: Vec<Box<dyn ForceContribution>>,
+    pub(crate) constraints: Vec<Box<dyn Constraint>>,
+}
+
+/// Everything [`crate::ModelBuilder::build`] hands to the engine.
+pub(crate) struct Assembled {
+    pub(crate) state: NodeState,
+    pub(crate) bodies: Vec<Body>,
+    pub(crate) nodes_per_element: usize,
+    pub(crate) connectivity: Vec<usize>,
+    pub(crate) elastic: ElasticForces,
+    pub(crate) contact: Option<ContactForces>,
+    pub(crate) parts: Parts,
+    pub(crate) gravity: [f64; 3],
+    pub(crate) bound: StepBound,
+    pub(crate) dt: f64,
+    pub(crate) guard: Guard,
+}
+
+/// An FDEM model advanced by explicit central differences (velocity Verlet).
+///
+/// Built by [`crate::ModelBuilder`]. Between steps a driver reads everything through
+/// accessors, reaches its own contributions and constraints through their handles
+/// ([`Simulation::get_mut`], [`Simulation::constraint_mut`]), moves walls and restores
+/// history through [`Simulation::contact_mut`], and edits node positions and velocities
+/// through [`Simulation::nodes_mut`]; the engine's own bookkeeping (clock, energy
+/// balance, bound) changes only through its methods.
 pub struct Simulation {
-    /// Node state.
-    pub state: NodeState,
-    /// Bodies (contiguous node and element ranges).
-    pub bodies: Vec<Body>,
-    /// Nodes per element (4 or 10).
-    pub nodes_per_element: usize,
-    /// Global element connectivity, `nodes_per_element` node ids per element.
-    pub connectivity: Vec<usize>,
-    /// Elastic forces of the particles.
-    pub elastic: ElasticForces,
-    /// Further contributions (contact, walls, membranes), evaluated after the elastic one.
-    pub contributions: Vec<Box<dyn ForceContribution>>,
-    /// Gravitational acceleration (m/s^2), applied as `m g` on every node.
-    pub gravity: [f64; 3],
-    /// Simulated time (s).
-    pub time: f64,
-    /// Steps taken.
-    pub step: u64,
-    /// The step size in use (s).
-    pub dt: f64,
-    /// The stable bound and what sets it: the elastic bound (each body's assembled bound)
-    /// combined with the contact springs' ([`StepBound::combined`]), or any other
-    /// contribution's bound if smaller.
-    pub bound: StepBound,
-    /// Stability guard settings.
-    pub guard: Guard,
+    state: NodeState,
+    bodies: Vec<Body>,
+    nodes_per_element: usize,
+    connectivity: Vec<usize>,
+    elastic: ElasticForces,
+    contact: Option<ContactForces>,
+    parts: Parts,
+    gravity: [f64; 3],
+    time: f64,
+    step: u64,
+    dt: f64,
+    bound: StepBound,
+    guard: Guard,
     initial_energy: f64,
     /// `M c_p^2` of the system (J), the unit of [`Guard::energy_floor`].
     wave_energy: f64,
     contribution_work: f64,
+    /// Gravity's work `sum m g . (x - x_ref)` at the last energy reference (J): the balance
+    /// counts gravity's work from there.
+    gravity_work_origin: f64,
     damping_dissipated: f64,
     friction_dissipated: f64,
     last_powers: Powers,
 }
 
+/// Mutable access to the node positions and velocities between steps
+/// ([`Simulation::nodes_mut`]). Masses, reference positions and forces stay the engine's.
+pub struct NodesMut<'a> {
+    /// Current positions (m).
+    pub positions: &'a mut [[f64; 3]],
+    /// Current velocities (m/s).
+    pub velocities: &'a mut [[f64; 3]],
+}
+
 impl Simulation {
-    /// Assembles a simulation, computes the stable bound, chooses the step and evaluates
-    /// the initial forces.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        state: NodeState,
-        bodies: Vec<Body>,
-        nodes_per_element: usize,
-        connectivity: Vec<usize>,
-        elastic: ElasticForces,
-        contributions: Vec<Box<dyn ForceContribution>>,
-        gravity: [f64; 3],
-        time_step: TimeStep,
-    ) -> Result<Self, SolverError> {
-        // Contact springs act on the particles' surface nodes, together with the elements:
-        // their bounds combine; any other contribution acts on nodes of its own.
-        let contact = StepBound::smallest(
-            contributions
-                .iter()
-                .filter(|c| c.as_contact().is_some())
-                .map(|c| c.stable_time_step()),
-        );
-        let bound = StepBound::of_model(
-            elastic.stable_time_step(),
-            contact,
-            contributions
-                .iter()
-                .filter(|c| c.as_contact().is_none())
-                .map(|c| c.stable_time_step()),
-        )
-        .unwrap_or(StepBound {
-            dt: f64::INFINITY,
-            source: "nothing (no elements or contacts)".into(),
-        });
-        let dt = match time_step {
-            TimeStep::Fixed(dt) => dt,
-            TimeStep::Automatic { safety } => safety * bound.dt,
-        };
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(SolverError::InvalidScene(format!(
-                "time step {dt:e} s is not a positive finite number (stable bound {:e} s set by {}); \
-                 give simulation.dt explicitly",
-                bound.dt, bound.source
-            )));
-        }
-        let total_mass: f64 = state.masses.iter().sum();
-        let wave_speed = elastic
+    /// Chooses the step, evaluates the initial forces and takes the initial energy.
+    pub(crate) fn new(parts: Assembled) -> Result<Self, SolverError> {
+        let total_mass: f64 = parts.state.masses.iter().sum();
+        let wave_speed = parts
+            .elastic
             .bodies
             .iter()
             .map(|b| b.set.material().p_wave_speed())
             .fold(0.0, f64::max);
         let mut sim = Simulation {
             wave_energy: total_mass * wave_speed * wave_speed,
-            state,
-            bodies,
-            nodes_per_element,
-            connectivity,
-            elastic,
-            contributions,
-            gravity,
+            state: parts.state,
+            bodies: parts.bodies,
+            nodes_per_element: parts.nodes_per_element,
+            connectivity: parts.connectivity,
+            elastic: parts.elastic,
+            contact: parts.contact,
+            parts: parts.parts,
+            gravity: parts.gravity,
             time: 0.0,
             step: 0,
-            dt,
-            bound,
-            guard: Guard::default(),
+            dt: parts.dt,
+            bound: parts.bound,
+            guard: parts.guard,
             initial_energy: 0.0,
             contribution_work: 0.0,
+            gravity_work_origin: 0.0,
             damping_dissipated: 0.0,
             friction_dissipated: 0.0,
             last_powers: Powers::default(),
@@ -184,16 +176,168 @@ impl Simulation {
         Ok(sim)
     }
 
+    /// Node state (positions, reference, velocities, forces, masses).
+    pub fn state(&self) -> &NodeState {
+        &self.state
+    }
+
+    /// Positions and velocities for editing between steps (restoring a saved state,
+    /// seating nodes on a platen). The forces are re-evaluated at the next step; call
+    /// [`Simulation::rebase_energy`] to re-evaluate them now and measure the energy
+    /// balance from the edited state.
+    pub fn nodes_mut(&mut self) -> NodesMut<'_> {
+        NodesMut {
+            positions: &mut self.state.positions,
+            velocities: &mut self.state.velocities,
+        }
+    }
+
+    /// Sets the clock (simulated time and step count), e.g. when a saved state is
+    /// restored.
+    pub fn set_clock(&mut self, time: f64, step: u64) {
+        self.time = time;
+        self.step = step;
+    }
+
+    /// Bodies in node order.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    /// The bodies that are grains ([`Body::is_particle`]), with their body ids.
+    pub fn particles(&self) -> impl Iterator<Item = (usize, &Body)> {
+        self.bodies
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.is_particle())
+    }
+
+    /// Nodes per element (4 or 10; 0 without elements).
+    pub fn nodes_per_element(&self) -> usize {
+        self.nodes_per_element
+    }
+
+    /// Global element connectivity, [`Simulation::nodes_per_element`] node ids per element.
+    pub fn connectivity(&self) -> &[usize] {
+        &self.connectivity
+    }
+
+    /// Number of elements.
+    pub fn n_elements(&self) -> usize {
+        self.bodies.iter().map(|b| b.elements.len()).sum()
+    }
+
+    /// The elastic forces of the deformable particles.
+    pub fn elastic(&self) -> &ElasticForces {
+        &self.elastic
+    }
+
+    /// Gravitational acceleration (m/s^2).
+    pub fn gravity(&self) -> [f64; 3] {
+        self.gravity
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn step(&self) -> u64 {
+        self.step
+    }
+
+    /// The step size in use (s).
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Changes the step from the next step on, even above the stable bound (the guard
+    /// watches): velocity Verlet holds velocities at whole steps, so a new step needs no
+    /// restart.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidScene`] for a step that is not finite and > 0.
+    pub fn set_dt(&mut self, dt: f64) -> Result<(), SolverError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(SolverError::InvalidScene(format!(
+                "time step {dt:e} s is not a positive finite number"
+            )));
+        }
+        self.dt = dt;
+        Ok(())
+    }
+
+    /// The stable bound and what sets it: the elastic bound (each body's assembled bound)
+    /// combined with the contact springs' ([`StepBound::combined`]), or any other
+    /// contribution's bound if smaller.
+    pub fn bound(&self) -> &StepBound {
+        &self.bound
+    }
+
+    /// Stability guard settings.
+    pub fn guard(&self) -> &Guard {
+        &self.guard
+    }
+
+    /// Changes the stability guard's settings from the next check on.
+    pub fn set_guard(&mut self, guard: Guard) {
+        self.guard = guard;
+    }
+
+    /// The contact stage, if the model has contact.
+    pub fn contact(&self) -> Option<&ContactForces> {
+        self.contact.as_ref()
+    }
+
+    /// The contact stage, mutable (move a wall, restore friction history).
+    pub fn contact_mut(&mut self) -> Option<&mut ContactForces> {
+        self.contact.as_mut()
+    }
+
+    /// The contribution behind `handle`.
+    ///
+    /// # Panics
+    /// If `handle` was issued by the builder of another model (a programming error, like
+    /// an index out of bounds).
+    pub fn get<T: ForceContribution>(&self, handle: Handle<T>) -> &T {
+        let part: &dyn Any = self.parts.contributions[handle.index()].as_ref();
+        part.downcast_ref().expect(FOREIGN_HANDLE)
+    }
+
+    /// The contribution behind `handle`, mutable: change its parameters between steps.
+    ///
+    /// # Panics
+    /// As [`Simulation::get`].
+    pub fn get_mut<T: ForceContribution>(&mut self, handle: Handle<T>) -> &mut T {
+        let part: &mut dyn Any = self.parts.contributions[handle.index()].as_mut();
+        part.downcast_mut().expect(FOREIGN_HANDLE)
+    }
+
+    /// The constraint behind `handle`.
+    ///
+    /// # Panics
+    /// As [`Simulation::get`].
+    pub fn constraint<T: Constraint>(&self, handle: ConstraintHandle<T>) -> &T {
+        let part: &dyn Any = self.parts.constraints[handle.index()].as_ref();
+        part.downcast_ref().expect(FOREIGN_HANDLE)
+    }
+
+    /// The constraint behind `handle`, mutable.
+    ///
+    /// # Panics
+    /// As [`Simulation::get`].
+    pub fn constraint_mut<T: Constraint>(&mut self, handle: ConstraintHandle<T>) -> &mut T {
+        let part: &mut dyn Any = self.parts.constraints[handle.index()].as_mut();
+        part.downcast_mut().expect(FOREIGN_HANDLE)
+    }
+
     /// Makes the current state the reference of the energy balance (initial energy, zero
     /// work and dissipation) and re-evaluates the forces. Call it after editing positions
     /// or velocities by hand, so that the stability guard measures from the new state.
     pub fn rebase_energy(&mut self) -> Result<(), SolverError> {
         self.compute_forces()?;
-        self.contribution_work = 0.0;
-        self.damping_dissipated = 0.0;
-        self.friction_dissipated = 0.0;
-        let e = self.energy();
-        self.initial_energy = e.kinetic + e.strain + e.other_potential;
+        self.reset_energy_reference();
         Ok(())
     }
 
@@ -203,6 +347,8 @@ impl Simulation {
     /// windows (the triaxial test) calls it at the end of each window.
     pub fn reset_energy_reference(&mut self) {
         self.contribution_work = 0.0;
+        self.gravity_work_origin = 0.0;
+        self.gravity_work_origin = self.gravity_work();
         self.damping_dissipated = 0.0;
         self.friction_dissipated = 0.0;
         let e = self.energy();
@@ -275,7 +421,9 @@ impl Simulation {
         })
     }
 
-    /// Zeroes the forces and adds every contribution and gravity for the current state.
+    /// The forces at the current state: zero them, then the elastic forces, contact,
+    /// every contribution in the order added, gravity, and the constraints as a pass of
+    /// their own.
     fn compute_forces(&mut self) -> Result<(), SolverError> {
         let state = &mut self.state;
         state
@@ -289,26 +437,18 @@ impl Simulation {
             time: self.time,
             dt: self.dt,
         };
-        let mut powers = self.elastic.add_forces(view, &mut state.forces)?;
-        for c in &mut self.contributions {
-            let p = c.add_forces(view, &mut state.forces)?;
-            powers.external += p.external;
-            powers.damping += p.damping;
-            powers.friction_energy += p.friction_energy;
+        let forces = &mut state.forces;
+        self.elastic.add_forces(view, forces)?;
+        let mut powers = Powers::default();
+        if let Some(contact) = self.contact.as_mut() {
+            powers.add(contact.add_forces(view, forces)?);
         }
-        let g = self.gravity;
-        if g != [0.0; 3] {
-            state
-                .forces
-                .par_chunks_mut(NODE_CHUNK)
-                .zip(state.masses.par_chunks(NODE_CHUNK))
-                .for_each(|(f, m)| {
-                    for (fi, &mi) in f.iter_mut().zip(m) {
-                        for k in 0..3 {
-                            fi[k] += mi * g[k];
-                        }
-                    }
-                });
+        for c in &mut self.parts.contributions {
+            powers.add(c.add_forces(view, forces)?);
+        }
+        add_gravity(self.gravity, &state.masses, forces);
+        for c in &mut self.parts.constraints {
+            powers.add(c.apply(view, forces)?);
         }
         self.last_powers = powers;
         Ok(())
@@ -316,26 +456,12 @@ impl Simulation {
 
     /// Advances one step of velocity Verlet:
     /// `v(n+1/2) = v(n) + dt/2 a(n)`, `x(n+1) = x(n) + dt v(n+1/2)`,
-    /// `a(n+1) = f(x(n+1), v(n+1/2)) / m`, `v(n+1) = v(n+1/2) + dt/2 a(n+1)`.
+    /// `a(n+1) = f(x(n+1), v(n+1/2)) / m`, `v(n+1) = v(n+1/2) + dt/2 a(n+1)`:
+    /// kick and drift, forces (with the constraints' pass), booking of work and
+    /// dissipation, kick, guard.
     pub fn advance(&mut self) -> Result<(), SolverError> {
-        let dt = self.dt;
-        let half = 0.5 * dt;
-        {
-            let s = &mut self.state;
-            s.positions
-                .par_chunks_mut(NODE_CHUNK)
-                .zip(s.velocities.par_chunks_mut(NODE_CHUNK))
-                .zip(s.forces.par_chunks(NODE_CHUNK))
-                .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
-                .for_each(|(((x, v), f), im)| {
-                    for i in 0..x.len() {
-                        for k in 0..3 {
-                            v[i][k] += half * f[i][k] * im[i];
-                            x[i][k] += dt * v[i][k];
-                        }
-                    }
-                });
-        }
+        let (dt, half) = (self.dt, 0.5 * self.dt);
+        kick_and_drift(&mut self.state, half, dt);
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.compute_forces() {
@@ -352,26 +478,7 @@ impl Simulation {
         self.contribution_work += dt * self.last_powers.external;
         self.damping_dissipated += dt * self.last_powers.damping;
         self.friction_dissipated += self.last_powers.friction_energy;
-        let finite = {
-            let s = &mut self.state;
-            s.velocities
-                .par_chunks_mut(NODE_CHUNK)
-                .zip(s.forces.par_chunks(NODE_CHUNK))
-                .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
-                .map(|((v, f), im)| {
-                    let mut ok = true;
-                    for i in 0..v.len() {
-                        for k in 0..3 {
-                            v[i][k] += half * f[i][k] * im[i];
-                            ok &= v[i][k].is_finite();
-                        }
-                    }
-                    ok
-                })
-                // `reduce` (not `all`) so that every chunk is updated; `&&` is
-                // order-independent, so the result does not depend on scheduling.
-                .reduce(|| true, |a, b| a && b)
-        };
+        let finite = kick(&mut self.state, half);
         self.step = step;
         self.time = time;
         if !finite {
@@ -397,18 +504,6 @@ impl Simulation {
     /// `|balance error| / energy scale`.
     pub fn relative_balance_error(&self, e: &EnergyReport) -> f64 {
         e.balance_error.abs() / self.energy_scale(e)
-    }
-
-    /// The contact contribution, if the simulation has one.
-    pub fn contact(&self) -> Option<&crate::ContactForces> {
-        self.contributions.iter().find_map(|c| c.as_contact())
-    }
-
-    /// The contact contribution, mutable (e.g. to restore friction history from a file).
-    pub fn contact_mut(&mut self) -> Option<&mut crate::ContactForces> {
-        self.contributions
-            .iter_mut()
-            .find_map(|c| c.as_contact_mut())
     }
 
     /// Stops the run if the energy balance error has grown past the guard's tolerance.
@@ -450,30 +545,37 @@ impl Simulation {
         }
     }
 
+    /// Gravity's work since the reference configuration, `sum m g . (x - x_ref)` (J):
+    /// exact, gravity being uniform and constant.
+    fn gravity_work(&self) -> f64 {
+        let (g, s) = (self.gravity, &self.state);
+        if g == [0.0; 3] {
+            return 0.0;
+        }
+        s.positions
+            .iter()
+            .zip(&s.reference)
+            .zip(&s.masses)
+            .map(|((x, x0), &m)| {
+                m * (g[0] * (x[0] - x0[0]) + g[1] * (x[1] - x0[1]) + g[2] * (x[2] - x0[2]))
+            })
+            .sum()
+    }
+
     /// The energies now.
     pub fn energy(&self) -> EnergyReport {
         let s = &self.state;
         let kinetic = s.kinetic_energy(0..s.len());
         let strain = self.elastic.potential_energy(self.view());
-        let other_potential: f64 = self
-            .contributions
-            .iter()
-            .map(|c| c.potential_energy(self.view()))
-            .sum();
-        // Gravity is uniform and constant: its work is exactly sum m g . (x - x0).
-        let g = self.gravity;
-        let gravity_work: f64 = if g == [0.0; 3] {
-            0.0
-        } else {
-            s.positions
+        let contact = self.contact.as_ref().map_or(0.0, |c| c.potential_energy());
+        let other_potential: f64 = contact
+            + self
+                .parts
+                .contributions
                 .iter()
-                .zip(&s.reference)
-                .zip(&s.masses)
-                .map(|((x, x0), &m)| {
-                    m * (g[0] * (x[0] - x0[0]) + g[1] * (x[1] - x0[1]) + g[2] * (x[2] - x0[2]))
-                })
-                .sum()
-        };
+                .map(|c| c.potential_energy(self.view()))
+                .sum::<f64>();
+        let gravity_work = self.gravity_work() - self.gravity_work_origin;
         let external_work = gravity_work + self.contribution_work;
         let dissipated = self.damping_dissipated + self.friction_dissipated;
         EnergyReport {
@@ -490,4 +592,59 @@ impl Simulation {
                 - self.initial_energy,
         }
     }
+}
+
+/// Adds `m g` to every node's force.
+fn add_gravity(g: [f64; 3], masses: &[f64], forces: &mut [[f64; 3]]) {
+    if g == [0.0; 3] {
+        return;
+    }
+    forces
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(masses.par_chunks(NODE_CHUNK))
+        .for_each(|(f, m)| {
+            for (fi, &mi) in f.iter_mut().zip(m) {
+                for k in 0..3 {
+                    fi[k] += mi * g[k];
+                }
+            }
+        });
+}
+
+/// The first half kick and the drift: `v += dt/2 f/m`, `x += dt v`.
+fn kick_and_drift(s: &mut NodeState, half: f64, dt: f64) {
+    s.positions
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(s.velocities.par_chunks_mut(NODE_CHUNK))
+        .zip(s.forces.par_chunks(NODE_CHUNK))
+        .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
+        .for_each(|(((x, v), f), im)| {
+            for i in 0..x.len() {
+                for k in 0..3 {
+                    v[i][k] += half * f[i][k] * im[i];
+                    x[i][k] += dt * v[i][k];
+                }
+            }
+        });
+}
+
+/// The second half kick, `v += dt/2 f/m`; false if a velocity became non-finite.
+fn kick(s: &mut NodeState, half: f64) -> bool {
+    s.velocities
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(s.forces.par_chunks(NODE_CHUNK))
+        .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
+        .map(|((v, f), im)| {
+            let mut ok = true;
+            for i in 0..v.len() {
+                for k in 0..3 {
+                    v[i][k] += half * f[i][k] * im[i];
+                    ok &= v[i][k].is_finite();
+                }
+            }
+            ok
+        })
+        // `reduce` (not `all`) so that every chunk is updated; `&&` is order-independent,
+        // so the result does not depend on scheduling.
+        .reduce(|| true, |a, b| a && b)
 }

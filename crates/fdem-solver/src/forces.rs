@@ -1,16 +1,19 @@
-//! The force-contribution interface and the elastic contribution of the particles.
+//! The force-contribution and constraint interfaces, and the elastic forces of the
+//! particles.
 //!
-//! Every physical effect that puts force on nodes (element elasticity now; contact, walls
-//! and membranes later) implements [`ForceContribution`]. The engine zeroes the force
-//! array, asks every contribution to add its forces for the current positions and
-//! velocities. The stable step combines the elastic and contact bounds (they act on the
-//! same nodes, [`StepBound::combined`]) and takes the smallest of that and the other
+//! Every physical effect that puts force on nodes (element elasticity, contact, a
+//! membrane, external loads) is a [`ForceContribution`]. The engine zeroes the force
+//! array, adds the elastic forces, the contact forces and every further contribution for
+//! the current positions and velocities, then runs the [`Constraint`]s as a pass of their
+//! own. The stable step combines the elastic and contact bounds (they act on the same
+//! nodes, [`StepBound::combined`]) and takes the smallest of that and the other
 //! contributions' bounds. The elastic bound is each body's assembled bound, estimated
 //! once by power iteration.
 
-use crate::{Body, SolverError};
+use crate::SolverError;
 use fdem_elastic::{AssembledStep, ElementSet};
 use rayon::prelude::*;
+use std::any::Any;
 use std::ops::Range;
 
 /// Read-only view of the node state that contributions evaluate forces from.
@@ -72,7 +75,7 @@ impl StepBound {
 
     /// The bound of a model: the elastic bound combined with the contact springs' (both
     /// act on the particles' nodes), then the smallest of that and `others` (contributions
-    /// on nodes of their own, such as a membrane). What [`crate::Simulation::new`] uses.
+    /// on nodes of their own, such as a membrane). What [`crate::ModelBuilder::build`] uses.
     pub fn of_model(
         elastic: Option<StepBound>,
         contact: Option<StepBound>,
@@ -93,27 +96,90 @@ pub struct Powers {
     pub friction_energy: f64,
 }
 
+impl Powers {
+    /// Adds `other` term by term.
+    pub fn add(&mut self, other: Powers) {
+        self.external += other.external;
+        self.damping += other.damping;
+        self.friction_energy += other.friction_energy;
+    }
+}
+
 /// Something that adds forces to nodes.
-pub trait ForceContribution: Send {
-    /// Short name used in reports (`elastic`, `contact`, ...).
+///
+/// A contribution is owned by the [`crate::Simulation`]; the driver reaches it between
+/// steps through the typed [`crate::Handle`] that [`crate::ModelBuilder::add_contribution`]
+/// returned (`sim.get_mut(handle)`), so that it can change a load, a pressure or a
+/// coefficient without any side channel.
+pub trait ForceContribution: Any + Send {
+    /// Short name used in reports (`membrane`, `membrane damping`, ...).
     fn name(&self) -> &str;
-    /// The stable-step bound this contribution imposes, if any.
-    fn stable_time_step(&self) -> Option<StepBound>;
+    /// The stable-step bound this contribution imposes, if any, given the lumped masses
+    /// of all nodes (kg).
+    fn stable_time_step(&self, masses: &[f64]) -> Option<StepBound>;
     /// Adds this contribution's forces to `forces` (N) and returns the powers it exchanges.
     fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError>;
-    /// Energy stored by this contribution (strain energy, contact springs) in J.
+    /// Energy stored by this contribution (strain energy, springs) in J.
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64;
-    /// The contribution as contact forces, if it is one (for contact outputs).
-    fn as_contact(&self) -> Option<&crate::ContactForces> {
-        None
+}
+
+/// A condition on nodes enforced after every force has been added: a node held on a
+/// moving platen, a prescribed motion.
+///
+/// Constraints run as a pass of their own, in the order they were added, after the
+/// elastic, contact and contributed forces and gravity: a constraint sees the whole force
+/// on its nodes, not a partial sum that depends on where it stands in a list. The reaction
+/// it applies is an external force; its power is booked as external work.
+pub trait Constraint: Any + Send {
+    /// Short name used in reports.
+    fn name(&self) -> &str;
+    /// Changes `forces` on the constrained nodes and returns the powers of the reactions
+    /// (`external`: the reaction's power on the nodes at the evaluation velocities).
+    fn apply(
+        &mut self,
+        nodes: NodeView<'_>,
+        forces: &mut [[f64; 3]],
+    ) -> Result<Powers, SolverError>;
+}
+
+/// The work of forces that are not the gradient of a stored energy (a follower pressure,
+/// viscous damping), booked over a velocity-Verlet step.
+///
+/// The engine books `P dt` with the power `P = F(n+1) . v(n+1/2)` evaluated at the
+/// half-step velocity. Velocity Verlet applies the force `F(n+1)` over the half kicks from
+/// `v(n+1/2)` to `v(n+3/2)`, so its true work is `F(n+1) . (v(n+1/2) + v(n+3/2)) / 2 dt`.
+/// On light nodes under a stiff force the difference accumulates to a visible share of the
+/// work. [`VerletWork::correction`] returns the missing share of the previous force as a
+/// power, `F(n) . (v(n+3/2) - v(n+1/2)) / 2`, once `v(n+3/2)` is known (the engine
+/// multiplies it by `dt` like every other power), and remembers the new force and
+/// velocity for the next step.
+#[derive(Clone, Debug, Default)]
+pub struct VerletWork {
+    previous: Vec<([f64; 3], [f64; 3])>,
+}
+
+impl VerletWork {
+    /// Prepares for `n` nodes; the first step after a change of `n` books no correction.
+    pub fn ensure(&mut self, n: usize) {
+        if self.previous.len() != n {
+            self.previous = vec![([0.0; 3], [0.0; 3]); n];
+        }
     }
-    /// The contribution as mutable contact forces, if it is one (to restore history).
-    fn as_contact_mut(&mut self) -> Option<&mut crate::ContactForces> {
-        None
+
+    /// For node `k` (of the `n` given to [`VerletWork::ensure`]) with force `force` now and
+    /// velocity `velocity` at this evaluation: `F_old . (v - v_old) / 2` (a power, W, in the
+    /// engine's `P dt` booking: the force of the previous evaluation times the velocity
+    /// change since, halved), and remembers `(force, velocity)`.
+    pub fn correction(&mut self, k: usize, force: [f64; 3], velocity: [f64; 3]) -> f64 {
+        let (f, v) = self.previous[k];
+        self.previous[k] = (force, velocity);
+        0.5 * (f[0] * (velocity[0] - v[0])
+            + f[1] * (velocity[1] - v[1])
+            + f[2] * (velocity[2] - v[2]))
     }
 }
 
@@ -143,33 +209,47 @@ pub struct ElasticForces {
 /// Bodies handled serially below this count per task (keeps rayon's overhead small).
 const SERIAL_BODIES: usize = 4;
 
+/// What [`ElasticForces::new`] needs of one deformable body: its id, node range, material
+/// and body-local connectivity (`nodes_per_element` ids per element, indices into the
+/// body's reference positions).
+#[derive(Clone, Debug)]
+pub struct ElementInput {
+    /// Body id.
+    pub body: usize,
+    /// Global node ids of the body.
+    pub nodes: Range<usize>,
+    /// The body's material.
+    pub material: fdem_elastic::Material,
+    /// 4 or 10.
+    pub nodes_per_element: usize,
+    /// Body-local connectivity.
+    pub connectivity: Vec<usize>,
+}
+
 impl ElasticForces {
-    /// Builds the element sets of `bodies` from the reference positions and the global
-    /// connectivity (`npe` node ids per element), and estimates each body's assembled
-    /// stable step (in parallel over bodies; a few hundred force evaluations per body).
-    pub fn new(
-        material: &fdem_elastic::Material,
-        npe: usize,
-        reference: &[[f64; 3]],
-        connectivity: &[usize],
-        bodies: &[Body],
-    ) -> Result<Self, SolverError> {
+    /// Builds the element sets of `bodies` (in increasing node order) from the reference
+    /// positions and estimates each body's assembled stable step (in parallel over
+    /// bodies; a few hundred force evaluations per body).
+    pub fn new(bodies: &[ElementInput], reference: &[[f64; 3]]) -> Result<Self, SolverError> {
         let out = bodies
             .par_iter()
-            .enumerate()
-            .map(|(id, body)| {
-                let local: Vec<usize> = connectivity
-                    [body.elements.start * npe..body.elements.end * npe]
-                    .iter()
-                    .map(|&n| n - body.nodes.start)
-                    .collect();
-                let rest = &reference[body.nodes.clone()];
-                let error = |source| SolverError::Elastic { body: id, source };
-                let set = ElementSet::new(material, npe, rest, &local).map_err(error)?;
+            .map(|input| {
+                let rest = &reference[input.nodes.clone()];
+                let error = |source| SolverError::Elastic {
+                    body: input.body,
+                    source,
+                };
+                let set = ElementSet::new(
+                    &input.material,
+                    input.nodes_per_element,
+                    rest,
+                    &input.connectivity,
+                )
+                .map_err(error)?;
                 let step = set.assembled_time_step();
                 Ok(BodyElements {
-                    body: id,
-                    nodes: body.nodes.clone(),
+                    body: input.body,
+                    nodes: input.nodes.clone(),
                     set,
                     step,
                 })
@@ -249,14 +329,10 @@ fn add_elastic(
     left.and(right)
 }
 
-impl ForceContribution for ElasticForces {
-    fn name(&self) -> &str {
-        "elastic"
-    }
-
+impl ElasticForces {
     /// The smallest assembled bound over the bodies (bodies are coupled only through
     /// contact, whose springs bound the step separately).
-    fn stable_time_step(&self) -> Option<StepBound> {
+    pub fn stable_time_step(&self) -> Option<StepBound> {
         self.bodies
             .iter()
             .filter(|b| b.step.time_step.is_finite())
@@ -270,11 +346,12 @@ impl ForceContribution for ElasticForces {
             })
     }
 
-    fn add_forces(
+    /// Adds the elastic forces of every body at `nodes.positions` to `forces` (N).
+    pub fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
-    ) -> Result<Powers, SolverError> {
+    ) -> Result<(), SolverError> {
         let start = self.bodies.first().map_or(0, |b| b.nodes.start);
         let end = self.bodies.last().map_or(0, |b| b.nodes.end);
         add_elastic(
@@ -282,11 +359,11 @@ impl ForceContribution for ElasticForces {
             nodes.positions,
             &mut forces[start..end],
             start,
-        )?;
-        Ok(Powers::default())
+        )
     }
 
-    fn potential_energy(&self, nodes: NodeView<'_>) -> f64 {
+    /// Strain energy of every body at `nodes.positions` (J).
+    pub fn potential_energy(&self, nodes: NodeView<'_>) -> f64 {
         self.bodies
             .iter()
             .map(|b| b.set.strain_energy(&nodes.positions[b.nodes.clone()]))

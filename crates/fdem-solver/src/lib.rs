@@ -21,21 +21,29 @@ mod dimensions;
 mod engine;
 mod error;
 mod forces;
+mod model;
 pub mod output;
 mod run;
 mod scene;
 mod state;
 pub mod toml_input;
 
-pub use body::{Body, BodyMotion};
+pub use body::{Body, BodyKind, BodyMotion};
 pub use contact::ContactForces;
 pub use dimensions::{Applied, Field, Role};
-pub use engine::{EnergyReport, Guard, Simulation, TimeStep};
+pub use engine::{EnergyReport, Guard, NodesMut, Simulation, TimeStep};
 pub use error::SolverError;
-pub use forces::{BodyElements, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
+pub use forces::{
+    BodyElements, Constraint, ElasticForces, ElementInput, ForceContribution, NodeView, Powers,
+    StepBound, VerletWork,
+};
+pub use model::{
+    BodyId, ConstraintHandle, ContactSettings, Handle, InitialMotion, ModelBuilder, SheetBody,
+    WallId,
+};
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
     ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
-    MeshSection, ParticleSection, Scene, SceneParts, SimulationSection, WallSection, WallType,
+    MeshSection, ParticleSection, Scene, SimulationSection, WallSection, WallType,
 };
 pub use state::NodeState;

@@ -83,12 +83,21 @@ pub fn energy_row(e: &EnergyReport) -> String {
 
 /// Appends one row per body to `bodies.csv`.
 pub fn body_rows(sim: &Simulation, series: &mut CsvSeries) -> Result<(), SolverError> {
-    for (id, body) in sim.bodies.iter().enumerate() {
-        let m = body.motion(&sim.state);
+    for (id, body) in sim.bodies().iter().enumerate() {
+        let m = body.motion(sim.state());
         let (c, v, w) = (m.centroid, m.velocity, m.angular_velocity);
         series.row(&format!(
             "{:e},{id},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
-            sim.time, c[0], c[1], c[2], v[0], v[1], v[2], w[0], w[1], w[2]
+            sim.time(),
+            c[0],
+            c[1],
+            c[2],
+            v[0],
+            v[1],
+            v[2],
+            w[0],
+            w[1],
+            w[2]
         ))?;
     }
     Ok(())
@@ -115,8 +124,8 @@ impl VtkSeries {
     /// Writes one frame (displacement, velocity, body id per node; stress and body per
     /// element) and rewrites the collection so that it always lists complete frames.
     pub fn frame(&mut self, sim: &Simulation) -> Result<(), SolverError> {
-        let s = &sim.state;
-        let (connectivity, npe) = (&sim.connectivity, sim.nodes_per_element);
+        let s = &sim.state();
+        let (connectivity, npe) = (&sim.connectivity(), sim.nodes_per_element());
         let displacement: Vec<f64> = s
             .positions
             .iter()
@@ -126,13 +135,13 @@ impl VtkSeries {
         let velocity: Vec<f64> = s.velocities.iter().flatten().copied().collect();
         let mut node_body = vec![0.0; s.len()];
         let mut cell_body = Vec::with_capacity(connectivity.len() / npe.max(1));
-        for (id, b) in sim.bodies.iter().enumerate() {
+        for (id, b) in sim.bodies().iter().enumerate() {
             node_body[b.nodes.clone()].fill(id as f64);
             cell_body.extend(std::iter::repeat_n(id as f64, b.elements.len()));
         }
         // Full symmetric tensor, 9 components row by row, as ParaView expects.
         let stress: Vec<f64> = sim
-            .elastic
+            .elastic()
             .stresses(&s.positions)?
             .iter()
             .flat_map(|t| {
@@ -176,7 +185,7 @@ impl VtkSeries {
             ],
         };
         write_vtu(&self.dir.join("frames").join(&name), &frame)?;
-        self.entries.push((sim.time, format!("frames/{name}")));
+        self.entries.push((sim.time(), format!("frames/{name}")));
         write_pvd(&self.dir.join("frames.pvd"), &self.entries)?;
         Ok(())
     }
@@ -185,10 +194,13 @@ impl VtkSeries {
 /// Appends one row per wall to `walls.csv`: the force the particles exert on it (N).
 pub fn wall_rows(sim: &Simulation, series: &mut CsvSeries) -> Result<(), SolverError> {
     if let Some(contact) = sim.contact() {
-        for (w, f) in contact.model.wall_forces().iter().enumerate() {
+        for (w, f) in contact.model().wall_forces().iter().enumerate() {
             series.row(&format!(
                 "{:e},{w},{:e},{:e},{:e}",
-                sim.time, f[0], f[1], f[2]
+                sim.time(),
+                f[0],
+                f[1],
+                f[2]
             ))?;
         }
     }
@@ -221,7 +233,7 @@ pub fn contact_snapshot_text(
     boundary: Option<BoundaryBody>,
 ) -> Option<(String, String)> {
     let contact = sim.contact()?;
-    let t = sim.time;
+    let t = sim.time();
     let remap = |c: fdem_contact::Counterpart| match (c, boundary) {
         (fdem_contact::Counterpart::Body(b), Some(bb)) if b == bb.body => {
             fdem_contact::Counterpart::Wall(bb.as_wall)
@@ -231,7 +243,7 @@ pub fn contact_snapshot_text(
     let is_boundary = |b: u32| boundary.is_some_and(|bb| bb.body == b);
     let mut nodes = String::from(NODE_CONTACTS_HEADER);
     nodes.push('\n');
-    for c in contact.model.node_contacts() {
+    for c in contact.model().node_contacts() {
         if is_boundary(c.body) {
             continue;
         }
@@ -256,7 +268,7 @@ pub fn contact_snapshot_text(
     }
     let mut pairs = String::from(PAIR_CONTACTS_HEADER);
     pairs.push('\n');
-    for p in contact.model.pair_sums() {
+    for p in contact.model().pair_sums() {
         if is_boundary(p.body) {
             continue;
         }

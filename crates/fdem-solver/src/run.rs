@@ -111,14 +111,14 @@ pub fn run(
     let mut sim = scene.build()?;
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| SolverError::io("creating directory", dir, e))?;
-    let steps = step_count(scene.simulation.duration, sim.dt);
+    let steps = step_count(scene.simulation.duration, sim.dt());
     let plan = RunPlan {
         duration: scene.simulation.duration,
-        dt: sim.dt,
+        dt: sim.dt(),
         steps,
-        bodies: sim.bodies.len(),
-        nodes: sim.state.len(),
-        elements: sim.bodies.iter().map(|b| b.elements.len()).sum(),
+        bodies: sim.bodies().len(),
+        nodes: sim.state().len(),
+        elements: sim.bodies().iter().map(|b| b.elements.len()).sum(),
     };
     observer.start(&plan);
     let mut energy = CsvSeries::create(dir, "energy.csv", ENERGY_HEADER)?;
@@ -163,11 +163,11 @@ pub fn run(
     outcome =
         outcome.and_then(|_| write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk));
     next_output += interval;
-    while outcome.is_ok() && sim.step < steps {
+    while outcome.is_ok() && sim.step() < steps {
         if interrupt.load(Ordering::Relaxed) {
             outcome = Err(SolverError::Interrupted {
-                time: sim.time,
-                step: sim.step,
+                time: sim.time(),
+                step: sim.step(),
             });
             break;
         }
@@ -175,13 +175,13 @@ pub fn run(
         if outcome.is_err() {
             break;
         }
-        let last = sim.step == steps;
-        if last || sim.time >= next_output - 0.5 * sim.dt {
+        let last = sim.step() == steps;
+        if last || sim.time() >= next_output - 0.5 * sim.dt() {
             outcome = write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk);
-            while next_output <= sim.time + 0.5 * sim.dt {
+            while next_output <= sim.time() + 0.5 * sim.dt() {
                 next_output += interval;
             }
-            observer.progress(sim.time, sim.step);
+            observer.progress(sim.time(), sim.step());
         }
     }
     let wall_seconds = wall.elapsed().as_secs_f64();
@@ -195,15 +195,15 @@ pub fn run(
     let summary = RunSummary {
         status: status.into(),
         error: outcome.as_ref().err().map(|e| e.to_string()),
-        steps: sim.step,
-        time: sim.time,
-        dt: sim.dt,
+        steps: sim.step(),
+        time: sim.time(),
+        dt: sim.dt(),
         dt_mode: match scene.simulation.dt {
             Some(_) => "fixed".into(),
             None => "automatic".into(),
         },
-        dt_bound: sim.bound.dt,
-        dt_bound_source: sim.bound.source.clone(),
+        dt_bound: sim.bound().dt,
+        dt_bound_source: sim.bound().source.clone(),
         bodies: plan.bodies,
         nodes: plan.nodes,
         elements: plan.elements,

@@ -5,11 +5,11 @@
 //! additively. Every range check happens while deserializing, so an error carries the key
 //! path and the line of the offending value.
 
-use crate::engine::{Simulation, TimeStep};
-use crate::forces::ElasticForces;
+use crate::SolverError;
+use crate::engine::{Guard, Simulation, TimeStep};
+use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
 use crate::toml_input::{level, vector};
-use crate::{Body, NodeState, SolverError};
-use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
+use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -494,7 +494,6 @@ impl Scene {
         self.contact.clone().unwrap_or_default()
     }
 
-    /// The contact contribution of the scene (none when `[contact] enabled = false`).
     /// The contact law of the scene's `[contact]` section (defaults of Table 3 filled in).
     pub fn contact_params(&self) -> fdem_contact::ContactParams {
         let c = self.contact_section();
@@ -528,61 +527,44 @@ impl Scene {
             .collect()
     }
 
-    /// The contact margin: `[contact] margin` if given, else
-    /// [`DEFAULT_MARGIN_FRACTION`] times the shortest edge of `surface` at `positions`.
+    /// The contact settings of the scene for `model` (the particles already added):
+    /// its law, `[contact] margin` or [`DEFAULT_MARGIN_FRACTION`] times the shortest
+    /// surface edge of the model so far, and `[contact] depth_limit`.
     ///
     /// # Errors
     /// [`SolverError::InvalidScene`] when the margin is implicit and there is no edge.
-    pub fn contact_margin(
-        &self,
-        surface: &fdem_contact::ContactSurface,
-        positions: &[[f64; 3]],
-    ) -> Result<f64, SolverError> {
-        match self.contact_section().margin {
-            Some(m) => Ok(m),
-            None => surface
-                .shortest_edge(positions)
-                .map(|e| DEFAULT_MARGIN_FRACTION * e)
-                .ok_or_else(|| SolverError::InvalidScene("the scene has no surface edges".into())),
-        }
-    }
-
-    fn contact_forces(
-        &self,
-        assembly: &MeshAssembly,
-        masses: &[f64],
-    ) -> Result<Vec<Box<dyn crate::ForceContribution>>, SolverError> {
+    pub fn contact_settings(&self, model: &ModelBuilder) -> Result<ContactSettings, SolverError> {
         let c = self.contact_section();
-        // A lone particle with no wall has nothing to touch: model no contact.
-        if !c.enabled || (self.particles.len() < 2 && self.walls.is_empty()) {
-            return Ok(Vec::new());
-        }
-        let surface = fdem_contact::ContactSurface::from_assembly(assembly)?;
-        let margin = self.contact_margin(&surface, &assembly.nodes)?;
-        let mut model = fdem_contact::ContactModel::new(
-            self.contact_params(),
-            surface,
-            self.contact_walls(),
-            masses,
+        let margin = match c.margin {
+            Some(m) => m,
+            None => model
+                .shortest_surface_edge()
+                .map(|e| DEFAULT_MARGIN_FRACTION * e)
+                .ok_or_else(|| {
+                    SolverError::InvalidScene("the scene has no surface edges".into())
+                })?,
+        };
+        Ok(ContactSettings {
+            params: self.contact_params(),
             margin,
-        )?;
-        if let Some(depth_limit) = c.depth_limit {
-            model.set_depth_limit(depth_limit)?;
-        }
-        Ok(vec![Box::new(crate::ContactForces::new(model))])
+            depth_limit: c.depth_limit,
+            sheet_fold_depth: None,
+        })
     }
 
-    /// Builds the meshes, the elastic element sets, the masses and the initial state of
-    /// the particles: everything of a simulation but the force contributions. A caller
-    /// that adds nodes of its own (a membrane) assembles its simulation from these parts;
-    /// [`Scene::build`] is the usual way.
-    pub fn assemble(&self) -> Result<SceneParts, SolverError> {
+    /// The particles' elastic material.
+    pub fn elastic_material(&self) -> Result<fdem_elastic::Material, SolverError> {
         let m = &self.material;
-        let material = fdem_elastic::Material::new(m.density, m.youngs_modulus, m.poisson_ratio)
-            .map_err(|source| SolverError::Elastic { body: 0, source })?;
-        // One unit-diameter template per mesh kind, scaled by each particle's diameter.
+        fdem_elastic::Material::new(m.density, m.youngs_modulus, m.poisson_ratio)
+            .map_err(|source| SolverError::Elastic { body: 0, source })
+    }
+
+    /// Adds the scene's particles to `model` (one unit-diameter template mesh per mesh
+    /// kind, scaled, rotated and moved to each particle) and returns their ids.
+    pub fn add_particles(&self, model: &mut ModelBuilder) -> Result<Vec<BodyId>, SolverError> {
+        let material = self.elastic_material()?;
         let mut templates: BTreeMap<(u32, bool, bool), TetMesh> = BTreeMap::new();
-        let mut assembly = MeshAssembly::new();
+        let mut ids = Vec::with_capacity(self.particles.len());
         for p in &self.particles {
             let mesh = p.mesh.unwrap_or_default();
             let key = (
@@ -606,76 +588,41 @@ impl Scene {
                 rotation: p.orientation.unwrap_or([1.0, 0.0, 0.0, 0.0]),
                 translation: p.center,
             };
-            assembly.push_instance(template, &placement)?;
+            let motion = InitialMotion {
+                velocity: p.velocity.unwrap_or([0.0; 3]),
+                angular_velocity: p.angular_velocity.unwrap_or([0.0; 3]),
+            };
+            ids.push(model.add_deformable(template, &placement, &material, motion)?);
         }
-        let bodies: Vec<Body> = assembly
-            .bodies
-            .iter()
-            .map(|b| Body {
-                nodes: b.nodes.clone(),
-                elements: b.elements.clone(),
-            })
-            .collect();
-        let npe = assembly.nodes_per_element();
-        let elastic =
-            ElasticForces::new(&material, npe, &assembly.nodes, &assembly.elements, &bodies)?;
-        let masses = elastic.lumped_masses(assembly.n_nodes());
-        let mut state = NodeState::new(assembly.nodes.clone(), masses);
-        for (p, body) in self.particles.iter().zip(&bodies) {
-            let v = p.velocity.unwrap_or([0.0; 3]);
-            let w = p.angular_velocity.unwrap_or([0.0; 3]);
-            for i in body.nodes.clone() {
-                let x = state.positions[i];
-                let r = [x[0] - p.center[0], x[1] - p.center[1], x[2] - p.center[2]];
-                let u = crate::body::cross(w, r);
-                state.velocities[i] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
+        Ok(ids)
+    }
+
+    /// The scene as a model: particles, then (with contact on and something to touch)
+    /// walls and contact, gravity, the step rule and the guard.
+    pub fn model(&self) -> Result<ModelBuilder, SolverError> {
+        let mut model = ModelBuilder::new();
+        self.add_particles(&mut model)?;
+        let c = self.contact_section();
+        // A lone particle with no wall has nothing to touch: model no contact.
+        if c.enabled && (self.particles.len() >= 2 || !self.walls.is_empty()) {
+            let settings = self.contact_settings(&model)?;
+            for wall in self.contact_walls() {
+                model.add_wall(wall);
             }
+            model.set_contact(settings);
         }
-        Ok(SceneParts {
-            assembly,
-            bodies,
-            elastic,
-            state,
-        })
+        model.set_gravity(self.simulation.gravity.unwrap_or([0.0; 3]));
+        model.set_time_step(self.time_step());
+        let mut guard = Guard::default();
+        if let Some(tol) = self.simulation.energy_tolerance {
+            guard.energy_tolerance = tol;
+        }
+        model.set_guard(guard);
+        Ok(model)
     }
 
     /// Builds the meshes, masses and initial state and returns a ready simulation.
     pub fn build(&self) -> Result<Simulation, SolverError> {
-        let SceneParts {
-            assembly,
-            bodies,
-            elastic,
-            state,
-        } = self.assemble()?;
-        let npe = assembly.nodes_per_element();
-        let contributions = self.contact_forces(&assembly, &state.masses)?;
-        let mut sim = Simulation::new(
-            state,
-            bodies,
-            npe,
-            assembly.elements,
-            elastic,
-            contributions,
-            self.simulation.gravity.unwrap_or([0.0; 3]),
-            self.time_step(),
-        )?;
-        if let Some(tol) = self.simulation.energy_tolerance {
-            sim.guard.energy_tolerance = tol;
-        }
-        Ok(sim)
+        self.model()?.build()
     }
-}
-
-/// The particles of a scene, assembled but without force contributions
-/// ([`Scene::assemble`]).
-#[derive(Debug)]
-pub struct SceneParts {
-    /// Meshes of all particles as placed (nodes, elements, surface, body ranges).
-    pub assembly: MeshAssembly,
-    /// Node and element ranges per particle.
-    pub bodies: Vec<Body>,
-    /// The particles' element sets.
-    pub elastic: ElasticForces,
-    /// Reference positions, masses and initial velocities of the particles' nodes.
-    pub state: NodeState,
 }

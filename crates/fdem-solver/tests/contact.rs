@@ -18,7 +18,7 @@ fn build(text: &str) -> Simulation {
 }
 
 fn momentum(sim: &Simulation) -> ([f64; 3], [f64; 3]) {
-    let s = &sim.state;
+    let s = &sim.state();
     let (mut p, mut l) = ([0.0; 3], [0.0; 3]);
     for i in 0..s.len() {
         let (x, v, m) = (s.positions[i], s.velocities[i], s.masses[i]);
@@ -82,7 +82,7 @@ fn oblique_collision_conserves_momentum() {
         let (contacts, deepest) = collide(&mut sim);
         assert!(contacts > 0, "the particles never touched");
         let (p1, l1) = momentum(&sim);
-        let v1 = sim.bodies[1].motion(&sim.state).velocity;
+        let v1 = sim.bodies()[1].motion(sim.state()).velocity;
         assert!(
             v1[0] > 0.1 && v1[1].abs() > 0.01,
             "no oblique transfer: {v1:?}"
@@ -156,7 +156,7 @@ fn drop_on_wall_run(damping: f64, simulation: &str) -> (f64, fdem_solver::Energy
     }
     assert!(touched, "never reached the wall");
     (
-        sim.bodies[0].motion(&sim.state).velocity[2] / 0.5,
+        sim.bodies()[0].motion(sim.state()).velocity[2] / 0.5,
         sim.energy(),
     )
 }
@@ -250,10 +250,10 @@ fn slide(angle_deg: f64, mu: f64, g: f64, duration: f64) -> (Vec<f64>, Vec<f64>)
     );
     let mut sim = build(&text);
     let (mut times, mut xs) = (Vec::new(), Vec::new());
-    while sim.time < duration {
+    while sim.time() < duration {
         sim.advance().unwrap();
-        times.push(sim.time);
-        xs.push(sim.bodies[0].motion(&sim.state).centroid[0]);
+        times.push(sim.time());
+        xs.push(sim.bodies()[0].motion(sim.state()).centroid[0]);
     }
     (times, xs)
 }
@@ -367,13 +367,13 @@ fn loaded_column_never_interpenetrates() {
         ));
     }
     let mut sim = build(&text);
-    let mass: f64 = sim.state.masses.iter().sum();
+    let mass: f64 = sim.state().masses.iter().sum();
     let weight = mass * g;
     let vertical_momentum = |sim: &Simulation| -> f64 {
-        sim.state
+        sim.state()
             .velocities
             .iter()
-            .zip(&sim.state.masses)
+            .zip(&sim.state().masses)
             .map(|(v, m)| m * v[2])
             .sum()
     };
@@ -381,7 +381,7 @@ fn loaded_column_never_interpenetrates() {
     let wall_force = |sim: &Simulation| -> f64 {
         -sim.contact()
             .unwrap()
-            .model
+            .model()
             .wall_forces()
             .iter()
             .map(|f| f[2])
@@ -390,20 +390,20 @@ fn loaded_column_never_interpenetrates() {
     let p0 = vertical_momentum(&sim);
     let (mut deepest, mut impulse) = (0.0f64, 0.0);
     let mut previous = wall_force(&sim) - weight;
-    while sim.time < 2.0e-3 {
+    while sim.time() < 2.0e-3 {
         sim.advance().unwrap();
         deepest = deepest.max(sim.contact().unwrap().last_report().max_depth);
         assert!(
             deepest < 0.02 * d,
             "penetration {deepest:e} m at t = {}",
-            sim.time
+            sim.time()
         );
         let now = wall_force(&sim) - weight;
-        impulse += 0.5 * (previous + now) * sim.dt;
+        impulse += 0.5 * (previous + now) * sim.dt();
         previous = now;
     }
     let dp = vertical_momentum(&sim) - p0;
-    let error = (dp - impulse).abs() / (weight * sim.time);
+    let error = (dp - impulse).abs() / (weight * sim.time());
     eprintln!(
         "deepest penetration {deepest:.3e} m ({:.2e} d); momentum change {dp:.6e} vs impulse {impulse:.6e} (error {error:.1e} of the weight's impulse)",
         deepest / d

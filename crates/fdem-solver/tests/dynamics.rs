@@ -23,8 +23,8 @@ fn particle(diameter: f64, extra: &str) -> String {
 }
 
 fn max_stress(sim: &Simulation) -> f64 {
-    sim.elastic
-        .stresses(&sim.state.positions)
+    sim.elastic()
+        .stresses(&sim.state().positions)
         .unwrap()
         .iter()
         .flatten()
@@ -55,11 +55,11 @@ fn spinning_sphere_keeps_zero_stress_and_conserves_momentum_and_energy() {
         )
         .build()
         .unwrap();
-        let body = sim.bodies[0].clone();
-        let m0 = body.motion(&sim.state);
+        let body = sim.bodies()[0].clone();
+        let m0 = body.motion(sim.state());
         let e0 = sim.energy();
         let revolution = 2.0 * std::f64::consts::PI / w;
-        let steps = (3.0 * revolution / sim.dt).ceil() as u64; // three revolutions
+        let steps = (3.0 * revolution / sim.dt()).ceil() as u64; // three revolutions
         let centrifugal = RHO * w * w * (d / 2.0).powi(2);
         let mut worst = 0.0f64;
         for i in 0..steps {
@@ -68,7 +68,7 @@ fn spinning_sphere_keeps_zero_stress_and_conserves_momentum_and_energy() {
                 worst = worst.max(max_stress(&sim));
             }
         }
-        let m1 = body.motion(&sim.state);
+        let m1 = body.motion(sim.state());
         let e1 = sim.energy();
         assert!(
             worst < 3.0 * centrifugal,
@@ -110,7 +110,8 @@ fn energy_drift_below_a_tenth_of_a_percent_over_ten_thousand_steps() {
     .unwrap();
     // Add a breathing velocity v = 0.05 m/s * r / R.
     let r = 0.0075;
-    for (v, x) in sim.state.velocities.iter_mut().zip(&sim.state.positions) {
+    let nodes = sim.nodes_mut();
+    for (v, x) in nodes.velocities.iter_mut().zip(nodes.positions.iter()) {
         for k in 0..3 {
             v[k] += 0.05 * x[k] / r;
         }
@@ -161,15 +162,16 @@ fn breathing_x(level: u32, order: &str) -> f64 {
     .build()
     .unwrap();
     let r = d / 2.0;
-    for (v, x) in sim.state.velocities.iter_mut().zip(&sim.state.positions) {
+    let nodes = sim.nodes_mut();
+    for (v, x) in nodes.velocities.iter_mut().zip(nodes.positions.iter()) {
         for k in 0..3 {
             v[k] = 0.01 * x[k] / r;
         }
     }
     sim.rebase_energy().unwrap();
-    let surface: Vec<usize> = (0..sim.state.len())
+    let surface: Vec<usize> = (0..sim.state().len())
         .filter(|&i| {
-            let x = sim.state.reference[i];
+            let x = sim.state().reference[i];
             (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt() > 0.9 * r
         })
         .collect();
@@ -177,7 +179,7 @@ fn breathing_x(level: u32, order: &str) -> f64 {
         surface
             .iter()
             .map(|&i| {
-                let (x, x0) = (sim.state.positions[i], sim.state.reference[i]);
+                let (x, x0) = (sim.state().positions[i], sim.state().reference[i]);
                 let n = (x0[0] * x0[0] + x0[1] * x0[1] + x0[2] * x0[2]).sqrt();
                 ((x[0] - x0[0]) * x0[0] + (x[1] - x0[1]) * x0[1] + (x[2] - x0[2]) * x0[2]) / n
             })
@@ -186,11 +188,11 @@ fn breathing_x(level: u32, order: &str) -> f64 {
     };
     let material_cp = ((E * (1.0 - NU) / ((1.0 + NU) * (1.0 - 2.0 * NU))) / RHO).sqrt();
     let period_estimate = 2.0 * std::f64::consts::PI * r / (2.0 * material_cp);
-    let steps = (6.0 * period_estimate / sim.dt) as usize;
+    let steps = (6.0 * period_estimate / sim.dt()) as usize;
     let mut samples = Vec::with_capacity(steps);
     for _ in 0..steps {
         sim.advance().unwrap();
-        samples.push((sim.time, radial(&sim)));
+        samples.push((sim.time(), radial(&sim)));
     }
     let mean = samples.iter().map(|s| s.1).sum::<f64>() / samples.len() as f64;
     let mut crossings = Vec::new();
@@ -274,7 +276,7 @@ fn stability_limit_is_where_the_bound_says() {
         )
         .build()?;
         // Seed every mode, the highest included, with a small irregular perturbation.
-        for (i, v) in sim.state.velocities.iter_mut().enumerate() {
+        for (i, v) in sim.nodes_mut().velocities.iter_mut().enumerate() {
             v[(i * 7) % 3] += 1e-3 * (((i * 2654435761) % 1000) as f64 / 1000.0 - 0.5);
         }
         sim.rebase_energy()?;
@@ -285,8 +287,8 @@ fn stability_limit_is_where_the_bound_says() {
         Ok(sim)
     };
     let mut stable = run("dt_safety = 0.95", 20_000).expect("0.95 x bound is stable");
-    let bound = stable.bound.dt;
-    let element_bound = stable.elastic.element_time_step();
+    let bound = stable.bound().dt;
+    let element_bound = stable.elastic().element_time_step();
     let system_bound = stable.estimate_system_time_step(2000).unwrap();
     eprintln!(
         "element bound {element_bound:.4e} s, the simulation's (assembled) bound {bound:.4e} s, \
@@ -308,7 +310,7 @@ fn stability_limit_is_where_the_bound_says() {
         SolverError::Unstable {
             dt, bound, step, ..
         } => {
-            assert_eq!(*bound, stable.bound.dt);
+            assert_eq!(*bound, stable.bound().dt);
             assert!((dt / system_bound - 1.1).abs() < 1e-12);
             assert!(*step > 0 && *step < 20_000);
         }
@@ -346,7 +348,10 @@ fn results_are_bitwise_identical_across_thread_counts() {
             for _ in 0..500 {
                 sim.advance().unwrap();
             }
-            (sim.state.positions.clone(), sim.state.velocities.clone())
+            (
+                sim.state().positions.clone(),
+                sim.state().velocities.clone(),
+            )
         })
     };
     let (x1, v1) = run(1);

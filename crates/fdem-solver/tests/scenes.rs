@@ -272,21 +272,21 @@ fn a_free_body_obeys_exact_scaling() {
         scaled.contact = Some(contact);
         let (mut a, mut b) = (base.build().unwrap(), scaled.build().unwrap());
         assert!(
-            (b.dt / (a.dt * h) - 1.0).abs() < 1e-12,
+            (b.dt() / (a.dt() * h) - 1.0).abs() < 1e-12,
             "automatic dt must scale by h"
         );
-        b.dt = a.dt * h;
+        b.set_dt(a.dt() * h).unwrap();
         for _ in 0..300 {
             a.advance().unwrap();
             b.advance().unwrap();
         }
         let size = 0.015;
-        for (xa, xb) in a.state.positions.iter().zip(&b.state.positions) {
+        for (xa, xb) in a.state().positions.iter().zip(&b.state().positions) {
             for k in 0..3 {
                 assert!((xb[k] - h * xa[k]).abs() < 1e-9 * h * size, "h = {h}");
             }
         }
-        for (va, vb) in a.state.velocities.iter().zip(&b.state.velocities) {
+        for (va, vb) in a.state().velocities.iter().zip(&b.state().velocities) {
             for k in 0..3 {
                 assert!((vb[k] - va[k]).abs() < 1e-9, "h = {h}");
             }

@@ -16,7 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let prepared = PreparedSpecimen::load(std::path::Path::new(path))?;
     let margin = {
         let model = TestModel::build(&prepared, None)?;
-        model.sim.contact().ok_or("no contact")?.model.margin() / TEST_SKIN_FRACTION
+        model.sim.contact().ok_or("no contact")?.model().margin() / TEST_SKIN_FRACTION
     };
     let mut pairs: Vec<(f64, f64)> = args[1..]
         .chunks(2)
@@ -50,12 +50,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!(
             "skin {:.2} mm, depth limit {:.2} mm: {:.3} ms per step, {} candidate pairs, \
              {} node contacts, {} rebuilds",
-            1e3 * c.model.margin(),
-            1e3 * c.model.depth_limit(),
+            1e3 * c.model().margin(),
+            1e3 * c.model().depth_limit(),
             1e3 * seconds,
             r.candidate_pairs,
             r.contacts,
-            c.model.rebuild_count()
+            c.model().rebuild_count()
         );
     }
     Ok(())

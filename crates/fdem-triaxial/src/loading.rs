@@ -13,13 +13,12 @@
 
 use crate::membrane::{MembraneForces, MembraneMesh, MembraneSpec, membrane_mesh};
 use crate::{PreparedSpecimen, SpecimenSpec, TriaxialError};
-use fdem_contact::{ContactModel, ContactSurface, Counterpart, Wall, WallShape};
+use fdem_contact::{Counterpart, Wall, WallShape};
 use fdem_solver::{
-    ForceContribution, NodeState, NodeView, Powers, Scene, SceneParts, Simulation,
-    SimulationSection, SolverError, StepBound, TimeStep,
+    BodyId, Constraint, ConstraintHandle, ContactSettings, ForceContribution, Guard, Handle,
+    ModelBuilder, NodeView, Powers, Scene, SheetBody, Simulation, SimulationSection, SolverError,
+    StepBound, TimeStep, VerletWork, WallId,
 };
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Energy-balance tolerance of the stability guard during the test (the solver's default
 /// is 0.05), checked every 256 steps against the balance since the last output (the
@@ -60,9 +59,9 @@ pub const TEST_FOLD_DEPTH_MARGINS: f64 = 0.5;
 pub const WATER_DENSITY: f64 = 1000.0;
 
 /// Wall index of the bottom platen in the test's contact model (fixed).
-pub const TEST_WALL_BOTTOM: usize = 0;
+pub const TEST_WALL_BOTTOM: WallId = WallId(0);
 /// Wall index of the top platen (driven).
-pub const TEST_WALL_TOP: usize = 1;
+pub const TEST_WALL_TOP: WallId = WallId(1);
 /// Wall index the membrane is reported as in contact snapshots (it is a body of the
 /// contact surface, reported as a boundary).
 pub const TEST_WALL_MEMBRANE: u32 = 2;
@@ -83,22 +82,18 @@ fn solver_error(phase: &'static str) -> impl Fn(SolverError) -> TriaxialError {
 
 /// Holds the membrane's end rings on the platens: removes the net force on the ring nodes
 /// (so their velocity, the platen's, does not change) and books the reaction's power,
-/// `-sum f . v`, as external power. Must be the last contribution.
+/// `-sum f . v`, as external power. A constraint, so it sees the whole force on its nodes.
 #[derive(Debug)]
-struct RingConstraint {
+pub struct RingHold {
     nodes: Vec<usize>,
 }
 
-impl ForceContribution for RingConstraint {
+impl Constraint for RingHold {
     fn name(&self) -> &str {
         "membrane rings"
     }
 
-    fn stable_time_step(&self) -> Option<StepBound> {
-        None
-    }
-
-    fn add_forces(
+    fn apply(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
@@ -114,10 +109,6 @@ impl ForceContribution for RingConstraint {
             ..Powers::default()
         })
     }
-
-    fn potential_energy(&self, _nodes: NodeView<'_>) -> f64 {
-        0.0
-    }
 }
 
 /// Viscous damping of the membrane's horizontal motion, the cell fluid's resistance in
@@ -129,19 +120,16 @@ impl ForceContribution for RingConstraint {
 /// support (a loose specimen under a rising pressure) from reaching speeds at which it
 /// slams into the particles. Quasi-static tests move the membrane far below `v_lim`, where
 /// only the linear part acts. The axial motion, which the platens impose, is free. The
-/// power is booked as damping.
+/// power is booked as damping, with the velocity-Verlet correction ([`VerletWork`]): for a
+/// damping force as stiff as the limiter it is tens of percent of the dissipation.
 #[derive(Debug)]
-struct MembraneDamping {
+pub struct MembraneDamping {
     nodes: Vec<usize>,
     /// `c A` per node (N s/m).
     linear: Vec<f64>,
-    /// `c_lim A` per node (N s/m).
-    limiter: Vec<f64>,
     /// Speed above which the limiter acts (m/s).
     speed_limit: f64,
-    /// Horizontal damping force of the previous evaluation and the velocity it was
-    /// evaluated with, per node, for the bookkeeping correction (see `add_forces`).
-    previous: Vec<([f64; 2], [f64; 2])>,
+    work: VerletWork,
 }
 
 impl ForceContribution for MembraneDamping {
@@ -149,9 +137,19 @@ impl ForceContribution for MembraneDamping {
         "membrane damping"
     }
 
-    fn stable_time_step(&self) -> Option<StepBound> {
-        // Its bound, 2 m / (c A + c_lim A) per node, is checked when the test is built.
-        None
+    /// Explicit damping is stable while `(c A + c_lim A) dt / m < 2`; with the limiter at
+    /// `c_lim A = m / (2 dt)` that is `dt < 3 m / (2 c A)` on every damped node.
+    fn stable_time_step(&self, masses: &[f64]) -> Option<StepBound> {
+        self.nodes
+            .iter()
+            .zip(&self.linear)
+            .filter(|(_, c)| **c > 0.0)
+            .map(|(&i, &c)| (i, 1.5 * masses[i] / c))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, dt)| StepBound {
+                dt,
+                source: format!("membrane damping: node {i} (lower membrane.damping)"),
+            })
     }
 
     fn add_forces(
@@ -159,31 +157,22 @@ impl ForceContribution for MembraneDamping {
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
-        // The engine books `P dt` with P evaluated at the half-step velocity v(n+1/2);
-        // velocity Verlet applies the force F(n+1) over the half kicks from v(n+1/2) to
-        // v(n+3/2), so its true work is `F(n+1) . (v(n+1/2) + v(n+3/2)) / 2 dt`. For a
-        // damping force as stiff as the limiter (c dt / m up to 1/2) the difference is
-        // tens of percent of the dissipation, so the previous force's share is added
-        // here, once v(n+3/2) is known: `-F(n) . (v(n+3/2) - v(n+1/2)) / 2`.
-        let fresh = self.previous.len() != self.nodes.len();
-        if fresh {
-            self.previous = vec![([0.0; 2], [0.0; 2]); self.nodes.len()];
-        }
+        self.work.ensure(self.nodes.len());
         let mut power = 0.0;
         for (k, &i) in self.nodes.iter().enumerate() {
             let v = nodes.velocities[i];
-            let (f_old, v_old) = self.previous[k];
-            power -= 0.5 * (f_old[0] * (v[0] - v_old[0]) + f_old[1] * (v[1] - v_old[1]));
             let speed = v[0].hypot(v[1]);
             let mut c = self.linear[k];
             if speed > self.speed_limit {
-                c += self.limiter[k] * (speed - self.speed_limit) / speed;
+                let limiter = 0.5 * nodes.masses[i] / nodes.dt;
+                c += limiter * (speed - self.speed_limit) / speed;
             }
-            let f = [-c * v[0], -c * v[1]];
+            let f = [-c * v[0], -c * v[1], 0.0];
+            // The correction is work done on the nodes: dissipation is its negative.
+            power -= self.work.correction(k, f, [v[0], v[1], 0.0]);
             forces[i][0] += f[0];
             forces[i][1] += f[1];
             power += c * speed * speed;
-            self.previous[k] = (f, [v[0], v[1]]);
         }
         Ok(Powers {
             damping: power,
@@ -196,62 +185,47 @@ impl ForceContribution for MembraneDamping {
     }
 }
 
-/// The membrane's forces with a pressure the test driver can change between steps (the
-/// contribution itself is owned by the simulation).
+/// The membrane's forces (elastic sheet and follower pressure) with the pressure the test
+/// driver sets between steps ([`TestModel::set_pressure`]).
 ///
-/// The follower pressure is not conservative, so its work is booked from its power. The
-/// engine books `P dt` at the half-step velocity v(n+1/2), while velocity Verlet applies
-/// the force F(n+1) from v(n+1/2) to v(n+3/2); on light membrane nodes that oscillate in
-/// contact the difference accumulates to percents of the pressure work. The share
-/// `F(n) . (v(n+3/2) - v(n+1/2)) / 2` of the previous force is added once v(n+3/2) is
-/// known (the same correction as in `MembraneDamping`).
+/// The follower pressure is not conservative, so its work is booked from its power, with
+/// the velocity-Verlet correction ([`VerletWork`]): on light membrane nodes that oscillate
+/// in contact the uncorrected booking accumulates to percents of the pressure work.
 #[derive(Debug)]
-struct PressurisedMembrane {
+pub struct PressurisedMembrane {
     inner: MembraneForces,
-    pressure: Arc<AtomicU64>,
     triangles: Vec<[usize; 3]>,
-    /// Pressure force of the previous evaluation and the velocity it was evaluated with,
-    /// per membrane node.
-    previous: Vec<([f64; 3], [f64; 3])>,
+    work: VerletWork,
+    /// Pressure forces of the current evaluation per membrane node (scratch).
     scratch: Vec<[f64; 3]>,
 }
 
 impl PressurisedMembrane {
-    fn new(inner: MembraneForces, pressure: Arc<AtomicU64>) -> Self {
+    fn new(inner: MembraneForces) -> Self {
         let triangles = inner.triangles().to_vec();
         PressurisedMembrane {
             inner,
-            pressure,
             triangles,
-            previous: Vec::new(),
+            work: VerletWork::default(),
             scratch: Vec::new(),
         }
     }
-}
 
-impl ForceContribution for PressurisedMembrane {
-    fn name(&self) -> &str {
-        self.inner.name()
+    /// The membrane's geometry and forces.
+    pub fn membrane(&self) -> &MembraneForces {
+        &self.inner
     }
 
-    fn stable_time_step(&self) -> Option<StepBound> {
-        self.inner.stable_time_step()
-    }
-
-    fn add_forces(
-        &mut self,
-        nodes: NodeView<'_>,
-        forces: &mut [[f64; 3]],
-    ) -> Result<Powers, SolverError> {
-        let p = f64::from_bits(self.pressure.load(Ordering::Relaxed));
-        self.inner.set_pressure(p);
-        let mut powers = self.inner.add_forces(nodes, forces)?;
-        // The pressure forces alone (the membrane adds p a_in / 3 to each corner), for
-        // the bookkeeping correction.
-        let (first, n) = (self.inner.first_node(), self.inner.n_nodes());
+    /// The pressure forces alone at `x`: the membrane adds `p a_in / 3` to each corner,
+    /// `a_in = (b - a) x (c - a) / 2`.
+    fn pressure_forces(&mut self, x: &[[f64; 3]]) {
+        let (first, n, p) = (
+            self.inner.first_node(),
+            self.inner.n_nodes(),
+            self.inner.pressure(),
+        );
         self.scratch.clear();
         self.scratch.resize(n, [0.0; 3]);
-        let x = nodes.positions;
         for t in &self.triangles {
             let [a, b, c] = t.map(|i| x[i + first]);
             let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
@@ -267,17 +241,30 @@ impl ForceContribution for PressurisedMembrane {
                 }
             }
         }
-        if self.previous.len() != n {
-            self.previous = vec![([0.0; 3], [0.0; 3]); n];
-        }
+    }
+}
+
+impl ForceContribution for PressurisedMembrane {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn stable_time_step(&self, masses: &[f64]) -> Option<StepBound> {
+        self.inner.stable_time_step(masses)
+    }
+
+    fn add_forces(
+        &mut self,
+        nodes: NodeView<'_>,
+        forces: &mut [[f64; 3]],
+    ) -> Result<Powers, SolverError> {
+        let mut powers = self.inner.add_forces(nodes, forces)?;
+        self.pressure_forces(nodes.positions);
+        let first = self.inner.first_node();
+        self.work.ensure(self.scratch.len());
         let mut correction = 0.0;
-        for (j, (f, prev)) in self.scratch.iter().zip(&mut self.previous).enumerate() {
-            let v = nodes.velocities[j + first];
-            let (f_old, v_old) = *prev;
-            for k in 0..3 {
-                correction += 0.5 * f_old[k] * (v[k] - v_old[k]);
-            }
-            *prev = (*f, v);
+        for (j, f) in self.scratch.iter().enumerate() {
+            correction += self.work.correction(j, *f, nodes.velocities[j + first]);
         }
         powers.external += correction;
         Ok(powers)
@@ -322,14 +309,16 @@ pub fn membrane_spec(spec: &SpecimenSpec, reach: f64) -> MembraneSpec {
 pub struct TestModel {
     /// The simulation (particles, membrane, platens).
     pub sim: Simulation,
-    /// Number of particles (bodies 0..n; the membrane is contact body n).
+    /// Number of particles (bodies 0..n; the membrane is body n).
     pub particles: usize,
-    /// A copy of the membrane's geometry and forces, for measurements (volume, inclusion).
-    pub membrane: MembraneForces,
+    /// The membrane body.
+    membrane_body: BodyId,
+    /// The membrane's forces under the confining pressure.
+    membrane: Handle<PressurisedMembrane>,
+    /// The membrane's end rings held on the platens.
+    rings: ConstraintHandle<RingHold>,
     /// Membrane specification.
     pub membrane_spec: MembraneSpec,
-    /// The confining pressure on the membrane (f64 bits), read at every evaluation.
-    pressure: Arc<AtomicU64>,
     /// Global ids of the top ring's nodes (they move with the top platen).
     pub top_ring: Vec<usize>,
     /// Global ids of the bottom ring's nodes (fixed).
@@ -340,43 +329,105 @@ pub struct TestModel {
     pub elements: usize,
 }
 
+/// The scene of the test's particles: as prepared, with the test's material and contact.
+fn particle_scene(prepared: &PreparedSpecimen) -> Result<Scene, TriaxialError> {
+    let simulated = prepared.spec.simulated()?;
+    Ok(Scene {
+        simulation: SimulationSection {
+            duration: 1.0,
+            dt: None,
+            dt_safety: None,
+            output_interval: None,
+            gravity: None,
+            energy_tolerance: None,
+        },
+        material: simulated.material.clone(),
+        particles: prepared.particle_sections(),
+        contact: Some(simulated.contact.clone()),
+        walls: Vec::new(),
+    })
+}
+
+/// The test's contact settings: the scene's law and margin, from which the specimen's
+/// margin sets the test's lengths (a thinner Verlet skin, a deeper depth limit unless
+/// `[contact] depth_limit` is given, the membrane's fold depth).
+fn test_contact(scene: &Scene, model: &ModelBuilder) -> Result<ContactSettings, TriaxialError> {
+    let base = scene
+        .contact_settings(model)
+        .map_err(solver_error("set-up"))?;
+    let margin = base.margin;
+    Ok(ContactSettings {
+        margin: TEST_SKIN_FRACTION * margin,
+        depth_limit: Some(
+            base.depth_limit
+                .unwrap_or(TEST_DEPTH_LIMIT_MARGINS * margin),
+        ),
+        sheet_fold_depth: Some(TEST_FOLD_DEPTH_MARGINS * margin),
+        ..base
+    })
+}
+
+/// The membrane's mesh and body: masses plus the cell fluid's added mass on each node's
+/// area, faces towards the axis.
+fn membrane_body(spec: &SpecimenSpec, ms: &MembraneSpec, mesh: &MembraneMesh) -> SheetBody {
+    let added = spec
+        .membrane
+        .added_mass
+        .unwrap_or(0.5 * WATER_DENSITY * spec.inner_radius());
+    let areas = mesh.control_areas();
+    SheetBody {
+        positions: mesh.positions.clone(),
+        masses: mesh
+            .lumped_masses(ms)
+            .iter()
+            .zip(&areas)
+            .map(|(m, a)| m + added * a)
+            .collect(),
+        triangles: mesh.triangles.clone(),
+        control_areas: areas,
+    }
+}
+
+/// The cell fluid's damping of the free (non-ring) membrane nodes.
+fn membrane_damping(spec: &SpecimenSpec, mesh: &MembraneMesh, first: usize) -> MembraneDamping {
+    let areas = mesh.control_areas();
+    let damped: Vec<usize> = (0..mesh.positions.len())
+        .filter(|&i| !mesh.is_ring_node(i))
+        .collect();
+    MembraneDamping {
+        linear: damped
+            .iter()
+            .map(|&i| spec.membrane.damping * areas[i])
+            .collect(),
+        nodes: damped.iter().map(|i| i + first).collect(),
+        speed_limit: spec
+            .membrane
+            .speed_limit
+            .unwrap_or_else(|| spec.loading_velocity()),
+        work: VerletWork::default(),
+    }
+}
+
 impl TestModel {
     /// Builds the test around a prepared specimen: the particles as prepared (state,
     /// friction history against particles and platens), the test's contact law, the
     /// membrane under the confining pressure, the platens fixed where preparation left
     /// them, and the step `dt` (unless given, `test.dt_safety` times the stable bound of
     /// the assembled test: the particles' assembled elastic bound combined with the contact
-    /// springs, or the membrane elements' bound if smaller).
+    /// springs, or the membrane's bound if smaller).
     pub fn build(prepared: &PreparedSpecimen, dt: Option<f64>) -> Result<TestModel, TriaxialError> {
         let spec = &prepared.spec;
-        let simulated = spec.simulated()?;
-        let height = spec.height;
-        let walls = vec![
-            Wall::plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
-            Wall::plane([0.0, 0.0, height], [0.0, 0.0, -1.0]),
-        ];
-        let scene = Scene {
-            simulation: SimulationSection {
-                duration: 1.0,
-                dt: None,
-                dt_safety: None,
-                output_interval: None,
-                gravity: None,
-                energy_tolerance: None,
-            },
-            material: simulated.material.clone(),
-            particles: prepared.particle_sections(),
-            contact: Some(simulated.contact.clone()),
-            walls: Vec::new(),
-        };
-        let SceneParts {
-            assembly,
-            bodies,
-            elastic,
-            state: particle_state,
-        } = scene.assemble().map_err(solver_error("set-up"))?;
-        let particles = bodies.len();
-        let n_particle_nodes = particle_state.len();
+        let scene = particle_scene(prepared)?;
+        let mut model = ModelBuilder::new();
+        scene
+            .add_particles(&mut model)
+            .map_err(solver_error("set-up"))?;
+        let (particles, n_particle_nodes) = (model.n_bodies(), model.n_nodes());
+        let contact = test_contact(&scene, &model)?;
+        let bottom = model.add_wall(Wall::plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]));
+        let top = model.add_wall(Wall::plane([0.0, 0.0, spec.height], [0.0, 0.0, -1.0]));
+        debug_assert_eq!((bottom, top), (TEST_WALL_BOTTOM, TEST_WALL_TOP));
+        model.set_contact(contact);
 
         // Particle nodes pressed into the preparation cylinder reach beyond the inner
         // radius; the membrane starts just outside all of them (plus 1e-6 of the radius,
@@ -389,153 +440,69 @@ impl TestModel {
             .fold(0.0, f64::max)
             * (1.0 + 1e-6);
         let membrane_spec = membrane_spec(spec, reach);
-        let mesh: MembraneMesh = membrane_mesh(&membrane_spec).map_err(|e| setup(e.to_string()))?;
-        let first = n_particle_nodes;
-        let mut reference = particle_state.reference.clone();
-        reference.extend_from_slice(&mesh.positions);
-        let mut masses = particle_state.masses.clone();
-        // Membrane masses plus the cell fluid's added mass on each node's area.
-        let added = spec
-            .membrane
-            .added_mass
-            .unwrap_or(0.5 * WATER_DENSITY * spec.inner_radius());
-        masses.extend(
-            mesh.lumped_masses(&membrane_spec)
-                .iter()
-                .zip(mesh.control_areas())
-                .map(|(m, a)| m + added * a),
-        );
-        let state = NodeState::new(reference, masses);
-
-        // The contact surface: the particles' surfaces and the membrane as body n.
-        let mut surface = ContactSurface::from_assembly(&assembly)
-            .map_err(|e| setup(format!("contact surface: {e}")))?;
-        let margin = scene
-            .contact_margin(&surface, &assembly.nodes)
+        let mesh = membrane_mesh(&membrane_spec).map_err(|e| setup(e.to_string()))?;
+        let membrane_body = model
+            .add_sheet(membrane_body(spec, &membrane_spec, &mesh))
             .map_err(solver_error("set-up"))?;
-        let membrane_body = u32::try_from(particles).map_err(|_| setup("too many particles"))?;
-        let global = |t: &[usize; 3]| t.map(|i| i + first);
-        let membrane_triangles: Vec<[usize; 3]> = mesh.triangles.iter().map(global).collect();
-        surface.triangles.extend_from_slice(&membrane_triangles);
-        surface
-            .triangle_body
-            .extend(std::iter::repeat_n(membrane_body, mesh.triangles.len()));
-        surface
-            .surface_nodes
-            .extend(first..first + mesh.positions.len());
-        surface
-            .node_body
-            .extend(std::iter::repeat_n(membrane_body, mesh.positions.len()));
-        surface.control_areas.extend(mesh.control_areas());
-        // The specimen's margin is the length scale of the test's contact settings: a
-        // thinner Verlet skin, a deeper depth limit, the membrane's fold depth.
-        let mut model = ContactModel::new(
-            scene.contact_params(),
-            surface,
-            walls,
-            &state.masses,
-            TEST_SKIN_FRACTION * margin,
-        )
-        .map_err(|e| setup(format!("contact: {e}")))?;
-        let depth_limit = scene
-            .contact_section()
-            .depth_limit
-            .unwrap_or(TEST_DEPTH_LIMIT_MARGINS * margin);
-        model
-            .set_depth_limit(depth_limit)
-            .map_err(|e| setup(format!("contact: {e}")))?;
-        model
-            .set_sheet_bodies(&[membrane_body], TEST_FOLD_DEPTH_MARGINS * margin)
-            .map_err(|e| setup(format!("contact: {e}")))?;
-
-        let pressure = spec.confining_pressure;
-        let pressure_cell = Arc::new(AtomicU64::new(pressure.to_bits()));
-        let membrane = PressurisedMembrane::new(
-            MembraneForces::new(&mesh, &membrane_spec, first, pressure)
-                .map_err(|e| setup(e.to_string()))?,
-            Arc::clone(&pressure_cell),
-        );
-        let measuring = MembraneForces::new(&mesh, &membrane_spec, first, pressure)
+        let first = n_particle_nodes;
+        let forces = MembraneForces::new(&mesh, &membrane_spec, first, spec.confining_pressure)
             .map_err(|e| setup(e.to_string()))?;
-        let contact = fdem_solver::ContactForces::new(model);
-        // The bound the simulation will compute (damping and rings impose none).
-        let bound = StepBound::of_model(
-            elastic.stable_time_step(),
-            contact.stable_time_step(),
-            [membrane.stable_time_step()],
-        )
-        .ok_or_else(|| setup("nothing bounds the time step"))?;
-        let dt = dt.unwrap_or(spec.test.dt_safety * bound.dt);
-        let top_ring: Vec<usize> = mesh.top_ring.iter().map(|i| i + first).collect();
-        let bottom_ring: Vec<usize> = mesh.bottom_ring.iter().map(|i| i + first).collect();
-        let rings = RingConstraint {
+        let membrane = model.add_contribution(PressurisedMembrane::new(forces));
+        model.add_contribution(membrane_damping(spec, &mesh, first));
+        let global = |ids: &[usize]| ids.iter().map(|i| i + first).collect::<Vec<_>>();
+        let (top_ring, bottom_ring) = (global(&mesh.top_ring), global(&mesh.bottom_ring));
+        let rings = model.add_constraint(RingHold {
             nodes: bottom_ring.iter().chain(&top_ring).copied().collect(),
-        };
-        // Damping coefficients per node; explicit damping is stable while
-        // (c + c_lim) A dt / m < 2, and the limiter takes half of what that allows.
-        let areas = mesh.control_areas();
-        let damped: Vec<usize> = (0..mesh.positions.len())
-            .filter(|&i| !mesh.is_ring_node(i))
-            .collect();
-        let linear: Vec<f64> = damped
-            .iter()
-            .map(|&i| spec.membrane.damping * areas[i])
-            .collect();
-        let limiter: Vec<f64> = damped
-            .iter()
-            .map(|&i| 0.5 * state.masses[i + first] / dt)
-            .collect();
-        if let Some((k, _)) = damped
-            .iter()
-            .enumerate()
-            .find(|&(k, &i)| (linear[k] + limiter[k]) * dt >= 2.0 * state.masses[i + first])
-        {
+        });
+        model.set_time_step(match dt {
+            Some(dt) => TimeStep::Fixed(dt),
+            None => TimeStep::Automatic {
+                safety: spec.test.dt_safety,
+            },
+        });
+        model.set_guard(Guard {
+            energy_tolerance: TEST_ENERGY_TOLERANCE,
+            ..Guard::default()
+        });
+        let elements = model.n_elements();
+        let sim = model.build().map_err(solver_error("set-up"))?;
+        if sim.bound().dt < sim.dt() {
             return Err(setup(format!(
-                "membrane.damping = {} Pa s/m makes the membrane's explicit damping unstable at \
-                 dt = {dt:e} s (node {}); lower it",
-                spec.membrane.damping,
-                damped[k] + first
-            )));
-        }
-        let damping = MembraneDamping {
-            nodes: damped.iter().map(|i| i + first).collect(),
-            linear,
-            limiter,
-            speed_limit: spec
-                .membrane
-                .speed_limit
-                .unwrap_or_else(|| spec.loading_velocity()),
-            previous: Vec::new(),
-        };
-        let contributions: Vec<Box<dyn ForceContribution>> = vec![
-            Box::new(contact),
-            Box::new(membrane),
-            Box::new(damping),
-            Box::new(rings),
-        ];
-        let npe = assembly.nodes_per_element();
-        let elements = assembly.n_elements();
-        let mut sim = Simulation::new(
-            state,
-            bodies,
-            npe,
-            assembly.elements,
-            elastic,
-            contributions,
-            [0.0; 3],
-            TimeStep::Fixed(dt),
-        )
-        .map_err(solver_error("set-up"))?;
-        if sim.bound.dt < dt {
-            return Err(setup(format!(
-                "the step {dt:e} s exceeds the stable bound {:e} s set by {}; \
+                "the step {:e} s exceeds the stable bound {:e} s set by {}; \
                  refine nothing: lower the step (or soften the membrane or the contact)",
-                sim.bound.dt, sim.bound.source
+                sim.dt(),
+                sim.bound().dt,
+                sim.bound().source
             )));
         }
+        let mut model = TestModel {
+            sim,
+            particles,
+            membrane_body,
+            membrane,
+            rings,
+            membrane_spec,
+            top_ring,
+            bottom_ring,
+            membrane_triangles: mesh
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| i + first))
+                .collect(),
+            elements,
+        };
+        model.restore_prepared(prepared, n_particle_nodes)?;
+        Ok(model)
+    }
 
-        // The prepared state: particle nodes, time and step; history against particles
-        // and the platens (preparation walls 1 and 2 are the test's walls 0 and 1).
+    /// The prepared state: particle nodes and friction history against particles and the
+    /// platens (preparation walls 1 and 2 are the test's walls 0 and 1); the test's clock
+    /// and step count start at zero, and the energy balance from this state.
+    fn restore_prepared(
+        &mut self,
+        prepared: &PreparedSpecimen,
+        n_particle_nodes: usize,
+    ) -> Result<(), TriaxialError> {
         let snapshot = &prepared.state;
         if snapshot.positions.len() != n_particle_nodes {
             return Err(setup(format!(
@@ -543,58 +510,61 @@ impl TestModel {
                 snapshot.positions.len()
             )));
         }
-        sim.state.positions[..n_particle_nodes].copy_from_slice(&snapshot.positions);
-        sim.state.velocities[..n_particle_nodes].copy_from_slice(&snapshot.velocities);
-        // The test's clock and step count start at zero.
+        let nodes = self.sim.nodes_mut();
+        nodes.positions[..n_particle_nodes].copy_from_slice(&snapshot.positions);
+        nodes.velocities[..n_particle_nodes].copy_from_slice(&snapshot.velocities);
         let history: Vec<_> = snapshot
             .history
             .iter()
             .filter_map(|&(node, c, d)| match c {
                 Counterpart::Body(_) => Some((node, c, d)),
                 Counterpart::Wall(w) if w as usize == crate::WALL_BOTTOM => {
-                    Some((node, Counterpart::Wall(TEST_WALL_BOTTOM as u32), d))
+                    Some((node, Counterpart::Wall(TEST_WALL_BOTTOM.0 as u32), d))
                 }
                 Counterpart::Wall(w) if w as usize == crate::WALL_TOP => {
-                    Some((node, Counterpart::Wall(TEST_WALL_TOP as u32), d))
+                    Some((node, Counterpart::Wall(TEST_WALL_TOP.0 as u32), d))
                 }
                 Counterpart::Wall(_) => None,
             })
             .collect();
-        if let Some(c) = sim.contact_mut() {
-            c.model
+        if let Some(c) = self.sim.contact_mut() {
+            c.model_mut()
                 .import_history(&history)
                 .map_err(TriaxialError::History)?;
         }
-        sim.guard.energy_tolerance = TEST_ENERGY_TOLERANCE;
-        sim.rebase_energy().map_err(solver_error("set-up"))?;
-        Ok(TestModel {
-            sim,
-            particles,
-            membrane: measuring,
-            pressure: pressure_cell,
-            membrane_spec,
-            top_ring,
-            bottom_ring,
-            membrane_triangles,
-            elements,
-        })
+        self.sim.rebase_energy().map_err(solver_error("set-up"))
+    }
+
+    /// The membrane's geometry and forces (volume, containment, node range).
+    pub fn membrane(&self) -> &MembraneForces {
+        self.sim.get(self.membrane).membrane()
+    }
+
+    /// The constraint that holds the membrane's rings.
+    pub fn rings(&self) -> &RingHold {
+        self.sim.constraint(self.rings)
     }
 
     /// Sets the confining pressure on the membrane (Pa) from the next evaluation on.
-    pub fn set_pressure(&self, pressure: f64) {
-        self.pressure.store(pressure.to_bits(), Ordering::Relaxed);
+    pub fn set_pressure(&mut self, pressure: f64) {
+        self.sim.get_mut(self.membrane).inner.set_pressure(pressure);
     }
 
     /// The confining pressure on the membrane (Pa).
     pub fn pressure(&self) -> f64 {
-        f64::from_bits(self.pressure.load(Ordering::Relaxed))
+        self.membrane().pressure()
     }
 
     /// z of a platen now (m).
-    pub fn platen_z(&self, wall: usize) -> f64 {
+    pub fn platen_z(&self, wall: WallId) -> f64 {
         self.sim
             .contact()
-            .and_then(|c| c.model.walls().get(wall).map(|w| w.shape_at(self.sim.time)))
+            .and_then(|c| {
+                c.model()
+                    .walls()
+                    .get(wall.0)
+                    .map(|w| w.shape_at(self.sim.time()))
+            })
             .map_or(f64::NAN, |s| match s {
                 WallShape::Plane { point, .. } => point[2],
                 WallShape::Cylinder { .. } => f64::NAN,
@@ -608,8 +578,8 @@ impl TestModel {
 
     /// Volume enclosed by the membrane and the platens (m^3), by the divergence theorem.
     pub fn volume(&self) -> f64 {
-        self.membrane.enclosed_volume(
-            &self.sim.state.positions,
+        self.membrane().enclosed_volume(
+            &self.sim.state().positions,
             self.platen_z(TEST_WALL_BOTTOM),
             self.platen_z(TEST_WALL_TOP),
         )
@@ -620,27 +590,28 @@ impl TestModel {
     pub fn axial_force(&self) -> f64 {
         self.sim
             .contact()
-            .and_then(|c| c.model.wall_forces().get(TEST_WALL_TOP).copied())
+            .and_then(|c| c.model().wall_forces().get(TEST_WALL_TOP.0).copied())
             .map_or(0.0, |f| f[2])
     }
 
     /// Moves the top platen (and the top ring) at `velocity` (m/s along z) from now on.
     pub fn set_top_velocity(&mut self, velocity: f64) -> Result<(), TriaxialError> {
-        let time = self.sim.time;
+        let time = self.sim.time();
         if let Some(c) = self.sim.contact_mut() {
-            c.model
-                .set_wall_velocity(TEST_WALL_TOP, [0.0, 0.0, velocity], time)
+            c.model_mut()
+                .set_wall_velocity(TEST_WALL_TOP.0, [0.0, 0.0, velocity], time)
                 .map_err(|e| TriaxialError::Test {
                     phase: "servo",
                     message: e.to_string(),
                 })?;
         }
         let z = self.platen_z(TEST_WALL_TOP);
+        let nodes = self.sim.nodes_mut();
         for &i in &self.top_ring {
             // Re-seat the ring on the platen (removes round-off drift) and give it the
             // platen's velocity.
-            self.sim.state.positions[i][2] = z;
-            self.sim.state.velocities[i] = [0.0, 0.0, velocity];
+            nodes.positions[i][2] = z;
+            nodes.velocities[i] = [0.0, 0.0, velocity];
         }
         Ok(())
     }
@@ -651,14 +622,13 @@ impl TestModel {
             self.platen_z(TEST_WALL_BOTTOM),
             self.platen_z(TEST_WALL_TOP),
         );
-        let x = &self.sim.state.positions;
+        let x = &self.sim.state().positions;
+        let membrane = self.membrane();
         self.sim
-            .bodies
-            .iter()
-            .enumerate()
+            .particles()
             .filter(|(_, b)| {
-                let centroid = b.motion(&self.sim.state).centroid;
-                !self.membrane.contains(x, bottom, top, centroid)
+                let centroid = b.motion(self.sim.state()).centroid;
+                !membrane.contains(x, bottom, top, centroid)
             })
             .map(|(id, _)| id)
             .collect()
@@ -666,6 +636,6 @@ impl TestModel {
 
     /// The membrane's contact body id.
     pub fn membrane_body(&self) -> u32 {
-        self.particles as u32
+        self.membrane_body.0 as u32
     }
 }

@@ -538,7 +538,7 @@ impl ForceContribution for MembraneForces {
         "membrane"
     }
 
-    fn stable_time_step(&self) -> Option<StepBound> {
+    fn stable_time_step(&self, _masses: &[f64]) -> Option<StepBound> {
         self.step.clone()
     }
 
@@ -889,7 +889,7 @@ mod tests {
         let s = spec(8, 3, 0.06);
         let m = membrane_mesh(&s).unwrap();
         let mut mf = MembraneForces::new(&m, &s, 0, 0.0).unwrap();
-        let b = mf.stable_time_step().unwrap();
+        let b = mf.stable_time_step(&[]).unwrap();
         assert!(b.source.starts_with("membrane: element "));
         // lambda_max(M^-1 K) of the assembly at the reference state by power iteration,
         // K v from central differences of the forces (step 1e-9 m).
@@ -939,7 +939,7 @@ mod tests {
         let q = w_theory * e * t / (r * r * (1.0 - nu * nu));
         let mut mf = MembraneForces::new(&m, &s, 0, -q).unwrap();
         let mass = m.lumped_masses(&s);
-        let dt = 0.5 * mf.stable_time_step().unwrap().dt;
+        let dt = 0.5 * mf.stable_time_step(&[]).unwrap().dt;
         // Mass-proportional damping near critical for the breathing mode omega = c / r.
         let alpha = 1.5 * (e / (s.density * (1.0 - nu * nu))).sqrt() / r;
         let (mut x, mut v) = (m.positions.clone(), vec![[0.0; 3]; m.positions.len()]);

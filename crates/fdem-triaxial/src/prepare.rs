@@ -335,7 +335,7 @@ pub fn specimen_time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), Tri
     let walls = preparation_walls(radius, -radius, radius, 0.0);
     let s = scene(spec, particle_sections(spec, &probe), walls, None)?;
     let sim = s.build().map_err(solver("time step"))?;
-    Ok((sim.dt, sim.bound.dt, sim.bound.source.clone()))
+    Ok((sim.dt(), sim.bound().dt, sim.bound().source.clone()))
 }
 
 impl Snapshot {
@@ -343,28 +343,24 @@ impl Snapshot {
     /// evaluation).
     fn take(sim: &Simulation, history: Vec<(usize, Counterpart, [f64; 3])>) -> Snapshot {
         Snapshot {
-            positions: sim.state.positions.clone(),
-            velocities: sim.state.velocities.clone(),
+            positions: sim.state().positions.clone(),
+            velocities: sim.state().velocities.clone(),
             history,
-            time: sim.time,
-            step: sim.step,
+            time: sim.time(),
+            step: sim.step(),
         }
     }
 
     /// Restores this state into `sim` (built on the same particles): positions,
     /// velocities, time, step count and friction history (entries against walls only
     /// with `keep_wall_history`), then re-evaluates the forces and makes the restored
-    /// state the reference of the energy balance.
-    ///
-    /// With gravity on, the solver's gravity work is measured from its reference
-    /// positions, so they are reset to the restored ones (displacements then count from
-    /// the restored state).
+    /// state the reference of the energy balance (gravity's work included).
     pub fn restore_into(
         &self,
         sim: &mut Simulation,
         keep_wall_history: bool,
     ) -> Result<(), TriaxialError> {
-        let n = sim.state.len();
+        let n = sim.state().len();
         if self.positions.len() != n || self.velocities.len() != n {
             return Err(TriaxialError::Solver {
                 phase: "restore",
@@ -374,13 +370,10 @@ impl Snapshot {
                 )),
             });
         }
-        sim.state.positions.copy_from_slice(&self.positions);
-        sim.state.velocities.copy_from_slice(&self.velocities);
-        if sim.gravity != [0.0; 3] {
-            sim.state.reference.copy_from_slice(&self.positions);
-        }
-        sim.time = self.time;
-        sim.step = self.step;
+        let nodes = sim.nodes_mut();
+        nodes.positions.copy_from_slice(&self.positions);
+        nodes.velocities.copy_from_slice(&self.velocities);
+        sim.set_clock(self.time, self.step);
         let history: Vec<_> = self
             .history
             .iter()
@@ -389,7 +382,7 @@ impl Snapshot {
             .collect();
         match sim.contact_mut() {
             Some(c) => c
-                .model
+                .model_mut()
                 .import_history(&history)
                 .map_err(TriaxialError::History)?,
             None if history.is_empty() => {}
@@ -409,7 +402,7 @@ impl Snapshot {
 /// History consumed by the next evaluation of `sim`.
 fn history(sim: &Simulation) -> Vec<(usize, Counterpart, [f64; 3])> {
     sim.contact()
-        .map(|c| c.model.export_history())
+        .map(|c| c.model().export_history())
         .unwrap_or_default()
 }
 
@@ -426,7 +419,7 @@ pub const FORCE_FLOOR: f64 = 1e-6;
 pub fn unbalanced_force_ratio(sim: &Simulation, reference_force: f64) -> f64 {
     let mut denominator = 0.0;
     if let Some(contact) = sim.contact() {
-        for c in contact.model.node_contacts() {
+        for c in contact.model().node_contacts() {
             let f = c.force();
             let m = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
             denominator += match c.counterpart {
@@ -435,19 +428,18 @@ pub fn unbalanced_force_ratio(sim: &Simulation, reference_force: f64) -> f64 {
             };
         }
     }
-    let floor = sim.bodies.len() as f64 * FORCE_FLOOR * reference_force;
+    let floor = sim.particles().count() as f64 * FORCE_FLOOR * reference_force;
     let denominator = denominator.max(floor);
     if denominator <= 0.0 {
         return 0.0;
     }
     let numerator: f64 = sim
-        .bodies
-        .iter()
-        .map(|b| {
+        .particles()
+        .map(|(_, b)| {
             let mut f = [0.0; 3];
             for i in b.nodes.clone() {
                 for (k, fk) in f.iter_mut().enumerate() {
-                    *fk += sim.state.forces[i][k];
+                    *fk += sim.state().forces[i][k];
                 }
             }
             (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()
@@ -459,8 +451,8 @@ pub fn unbalanced_force_ratio(sim: &Simulation, reference_force: f64) -> f64 {
 fn platen_gap(sim: &Simulation) -> f64 {
     sim.contact()
         .map(|c| {
-            let walls = c.model.walls();
-            let z = |w: usize| match walls.get(w).map(|w| w.shape_at(sim.time)) {
+            let walls = c.model().walls();
+            let z = |w: usize| match walls.get(w).map(|w| w.shape_at(sim.time())) {
                 Some(fdem_contact::WallShape::Plane { point, .. }) => point[2],
                 _ => 0.0,
             };
@@ -472,9 +464,9 @@ fn platen_gap(sim: &Simulation) -> f64 {
 fn status(sim: &Simulation, step: u64, unbalanced: Option<f64>) -> Status {
     Status {
         step,
-        time: sim.time,
+        time: sim.time(),
         platen_gap: platen_gap(sim),
-        contacts: sim.contact().map_or(0, |c| c.model.node_contacts().len()),
+        contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()),
         unbalanced_force: unbalanced,
     }
 }
@@ -497,7 +489,7 @@ fn run_phase(
         if (s + 1) % every == 0 && !observer.progress(phase, &status(sim, s + 1, None)) {
             return Err(TriaxialError::Interrupted {
                 phase: phase.name(),
-                step: sim.step,
+                step: sim.step(),
             });
         }
     }
@@ -509,11 +501,11 @@ fn run_phase(
 /// last evaluation produced; at rest the re-evaluation adds no tangential increment.
 fn quench(sim: &mut Simulation) -> Result<Snapshot, TriaxialError> {
     let snapshot = Snapshot {
-        positions: sim.state.positions.clone(),
-        velocities: vec![[0.0; 3]; sim.state.len()],
+        positions: sim.state().positions.clone(),
+        velocities: vec![[0.0; 3]; sim.state().len()],
         history: history(sim),
-        time: sim.time,
-        step: sim.step,
+        time: sim.time(),
+        step: sim.step(),
     };
     snapshot.restore_into(sim, true)?;
     Ok(snapshot)
@@ -524,11 +516,11 @@ fn wall_stresses(spec: &SpecimenSpec, sim: &Simulation) -> (f64, f64) {
     let Some(contact) = sim.contact() else {
         return (0.0, 0.0);
     };
-    let forces = contact.model.wall_forces();
+    let forces = contact.model().wall_forces();
     let axial = |w: usize| forces.get(w).map_or(0.0, |f| f[2].abs());
     let platen = 0.5 * (axial(WALL_BOTTOM) + axial(WALL_TOP)) / spec.inner_area();
     let radial: f64 = contact
-        .model
+        .model()
         .node_contacts()
         .iter()
         .filter(|c| c.counterpart == Counterpart::Wall(WALL_CYLINDER as u32))
@@ -540,10 +532,10 @@ fn wall_stresses(spec: &SpecimenSpec, sim: &Simulation) -> (f64, f64) {
 
 /// Real solid fraction: volume of the deformed tetrahedra (corner nodes) over `volume`.
 fn real_solid_fraction(sim: &Simulation, volume: f64) -> f64 {
-    let npe = sim.nodes_per_element;
-    let x = &sim.state.positions;
+    let npe = sim.nodes_per_element();
+    let x = &sim.state().positions;
     let solid: f64 = sim
-        .connectivity
+        .connectivity()
         .chunks_exact(npe)
         .map(|e| {
             let (a, b, c, d) = (x[e[0]], x[e[1]], x[e[2]], x[e[3]]);
@@ -562,15 +554,15 @@ fn real_solid_fraction(sim: &Simulation, volume: f64) -> f64 {
 fn checks(spec: &SpecimenSpec, sim: &Simulation, d_min: f64) -> Checks {
     let radius = spec.inner_radius();
     let height = spec.height;
-    let x = &sim.state.positions;
+    let x = &sim.state().positions;
     let mut particles_outside = 0;
     let mut max_wall_penetration = 0.0f64;
-    for b in &sim.bodies {
+    for b in sim.bodies() {
         let mut c = [0.0; 3];
         let mut m = 0.0;
         for i in b.nodes.clone() {
             let xi = x[i];
-            let mi = sim.state.masses[i];
+            let mi = sim.state().masses[i];
             m += mi;
             for k in 0..3 {
                 c[k] += mi * xi[k];
@@ -588,7 +580,7 @@ fn checks(spec: &SpecimenSpec, sim: &Simulation, d_min: f64) -> Checks {
         }
     }
     let max_overlap = sim.contact().map_or(0.0, |c| {
-        c.model
+        c.model()
             .node_contacts()
             .iter()
             .filter(|n| matches!(n.counterpart, Counterpart::Body(_)))
@@ -764,12 +756,12 @@ pub fn prepare(
     let mut quenches = 0u64;
     let mut ke_prev = 0.0;
     let mut rising = false;
-    let n_nodes = sim.state.len();
+    let n_nodes = sim.state().len();
     while settle_steps < max_steps {
         sim.advance().map_err(solver("settle"))?;
         settle_steps += 1;
         // Kinetic damping: when the kinetic energy has passed a peak, stop every node.
-        let ke = sim.state.kinetic_energy(0..n_nodes);
+        let ke = sim.state().kinetic_energy(0..n_nodes);
         if rising && ke < ke_prev {
             quench(&mut sim)?;
             quenches += 1;
@@ -784,7 +776,7 @@ pub fn prepare(
             if !observer.progress(Phase::Settle, &status(&sim, settle_steps, Some(ratio))) {
                 return Err(TriaxialError::Interrupted {
                     phase: "settle",
-                    step: sim.step,
+                    step: sim.step(),
                 });
             }
             if ratio <= prep.unbalanced_force {
@@ -793,14 +785,14 @@ pub fn prepare(
             }
         }
     }
-    let residual_kinetic_energy = sim.state.kinetic_energy(0..n_nodes);
+    let residual_kinetic_energy = sim.state().kinetic_energy(0..n_nodes);
     // The specimen is kept at rest.
     let last = quench(&mut sim)?;
 
     let checks = checks(spec, &sim, d_min);
     let inner_volume = spec.inner_volume();
     let pairs = sim.contact().map_or(0, |c| {
-        c.model
+        c.model()
             .pair_sums()
             .iter()
             .filter(|p| matches!(p.counterpart, Counterpart::Body(_)))
@@ -821,7 +813,7 @@ pub fn prepare(
         compact_steps,
         settle_steps,
         settled,
-        simulated_time: sim.time,
+        simulated_time: sim.time(),
         wall_seconds: wall_clock.elapsed().as_secs_f64(),
         cpu_seconds: cpu.map(|c| c.elapsed().as_secs_f64()),
         threads: rayon::current_num_threads() as u64,
@@ -829,7 +821,7 @@ pub fn prepare(
         solid_fraction_real: real_solid_fraction(&sim, inner_volume),
         platen_stress,
         cylinder_stress,
-        node_contacts: sim.contact().map_or(0, |c| c.model.node_contacts().len()) as u64,
+        node_contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()) as u64,
         particle_contacts: pairs,
         coordination_number: 2.0 * pairs as f64 / counts.particles as f64,
         residual_kinetic_energy,

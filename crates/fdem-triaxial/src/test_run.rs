@@ -332,7 +332,7 @@ impl Run<'_> {
         let sim = &self.model.sim;
         let energy = sim.energy();
         Measurement {
-            time: sim.time,
+            time: sim.time(),
             height: self.model.height(),
             volume: self.model.volume(),
             axial_force: self.model.axial_force(),
@@ -340,8 +340,8 @@ impl Run<'_> {
             unbalanced_force: unbalanced_force_ratio(sim, self.reference_force),
             energy_error: self.energy.relative(),
             max_depth: sim.contact().map_or(0.0, |c| c.last_report().max_depth),
-            contacts: sim.contact().map_or(0, |c| c.model.node_contacts().len()) as u64,
-            step: sim.step,
+            contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()) as u64,
+            step: sim.step(),
         }
     }
 
@@ -372,8 +372,8 @@ impl Run<'_> {
                      time {:e} s; refine the membrane (membrane.divisions_around) or raise \
                      contact.normal_penalty",
                     outside.len(),
-                    self.model.sim.step,
-                    self.model.sim.time
+                    self.model.sim.step(),
+                    self.model.sim.time()
                 ),
             });
         }
@@ -390,9 +390,9 @@ impl Run<'_> {
         let mut points: Vec<[f64; 3]> = Vec::new();
         let mut cells: Vec<usize> = Vec::new();
         let mut part: Vec<f64> = Vec::new();
-        let first = self.model.membrane.first_node();
-        let n = self.model.membrane.n_nodes();
-        points.extend_from_slice(&sim.state.positions[first..first + n]);
+        let first = self.model.membrane().first_node();
+        let n = self.model.membrane().n_nodes();
+        points.extend_from_slice(&sim.state().positions[first..first + n]);
         for t in &self.model.membrane_triangles {
             cells.extend(t.iter().map(|i| i - first));
             part.push(0.0);
@@ -436,7 +436,7 @@ impl Run<'_> {
         };
         write_vtu(&dir.join(&name), &frame).map_err(err)?;
         self.boundary_frames
-            .push((sim.time, format!("frames/{name}")));
+            .push((sim.time(), format!("frames/{name}")));
         write_pvd(
             &self.options.out_dir.join("boundary.pvd"),
             &self.boundary_frames,
@@ -496,7 +496,7 @@ pub fn run_test(
     };
     let test = &spec.test;
     let velocity = spec.loading_velocity();
-    let dt = run.model.sim.dt;
+    let dt = run.model.sim.dt();
     let height = spec.height;
     let consolidation_time = test.consolidation_time.unwrap_or(0.1 * height / velocity);
     let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
@@ -512,22 +512,22 @@ pub fn run_test(
         exact_scaling: spec.exact_scaling,
         plan: TestPlan {
             particles: run.model.particles,
-            particle_nodes: run.model.membrane.first_node(),
+            particle_nodes: run.model.membrane().first_node(),
             elements: run.model.elements,
-            membrane_nodes: run.model.membrane.n_nodes(),
+            membrane_nodes: run.model.membrane().n_nodes(),
             dt,
-            dt_bound: run.model.sim.bound.dt,
-            dt_bound_source: run.model.sim.bound.source.clone(),
+            dt_bound: run.model.sim.bound().dt,
+            dt_bound_source: run.model.sim.bound().source.clone(),
             contact_margin: run
                 .model
                 .sim
                 .contact()
-                .map_or(f64::NAN, |c| c.model.margin()),
+                .map_or(f64::NAN, |c| c.model().margin()),
             depth_limit: run
                 .model
                 .sim
                 .contact()
-                .map_or(f64::NAN, |c| c.model.depth_limit()),
+                .map_or(f64::NAN, |c| c.model().depth_limit()),
             loading_velocity: velocity,
             inertial_number: spec.inertial_number(),
             consolidation_steps_max,
@@ -636,14 +636,14 @@ fn stages(
     // to sigma_0 over the ramp; the servo follows the same target.
     let ramp_time = test.ramp_time.unwrap_or(0.01 * spec.height / velocity);
     let start_pressure = run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0);
-    let t_start = run.model.sim.time;
+    let t_start = run.model.sim.time();
     let sigma_0 = run.sigma_0;
     let target = move |t: f64| {
         let f = ((t - t_start) / ramp_time).clamp(0.0, 1.0);
         start_pressure + f * (sigma_0 - start_pressure)
     };
     let strain_rate = velocity / spec.height;
-    let mut last_volume = (run.model.sim.time, run.model.volume());
+    let mut last_volume = (run.model.sim.time(), run.model.volume());
     // Forces and the energy reference at the starting pressure.
     run.model.set_pressure(target(t_start));
     run.model
@@ -654,7 +654,7 @@ fn stages(
     let mut steps = 0u64;
     let mut result = &mut summary.consolidation;
     loop {
-        let pressure = target(run.model.sim.time);
+        let pressure = target(run.model.sim.time());
         run.model.set_pressure(pressure);
         let ratio = run.stress_ratio();
         result.max_overshoot = result.max_overshoot.max(ratio - 1.0);
@@ -693,7 +693,7 @@ fn stages(
             let elapsed = (m.time - t_prev).max(f64::MIN_POSITIVE);
             result.volume_rate = (m.volume / v_prev).ln().abs() / elapsed / strain_rate;
             last_volume = (m.time, m.volume);
-            result.reached = run.model.sim.time - t_start >= ramp_time
+            result.reached = run.model.sim.time() - t_start >= ramp_time
                 && result.volume_rate <= test.volume_rate
                 && (result.stress_ratio - 1.0).abs() <= test.stress_tolerance
                 && result.unbalanced_force <= test.unbalanced_force
@@ -710,11 +710,11 @@ fn stages(
                 break;
             }
             if stop(ok) {
-                result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+                result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
                 return Ok(false);
             }
             if steps >= planned {
-                result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+                result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
                 return Err(TriaxialError::Test {
                     phase: "consolidation",
                     message: format!(
@@ -722,7 +722,7 @@ fn stages(
                          sigma_0 (tolerance {}), unbalanced force {:.3e} (limit {}), kinetic \
                          ratio {:.3e} (limit {}), volume rate {:.3e} (limit {}); raise \
                          test.consolidation_time or relax the limits",
-                        steps as f64 * run.model.sim.dt,
+                        steps as f64 * run.model.sim.dt(),
                         result.stress_ratio,
                         test.stress_tolerance,
                         result.unbalanced_force,
@@ -735,11 +735,11 @@ fn stages(
                 });
             }
         } else if steps.is_multiple_of(PROGRESS_STEPS) && stop(true) {
-            result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+            result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
             return Ok(false);
         }
     }
-    result.cost = cost(steps, steps as f64 * run.model.sim.dt, wall, cpu);
+    result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
     result.energy_balance_error = {
         run.energy.close(&mut run.model.sim);
         run.energy.relative()
@@ -772,7 +772,7 @@ fn stages(
     summary.peak_snapshot_eps_a = Some(first.eps_a);
     let mut next_output = test.output_strain;
     let mut steps = 0u64;
-    let t0 = run.model.sim.time;
+    let t0 = run.model.sim.time();
     let mut completed = true;
     // Errors leave the loop with the cost of the steps taken recorded.
     let outcome: Result<(), TriaxialError> = loop {
@@ -835,7 +835,7 @@ fn stages(
             }
         }
     };
-    summary.shear = cost(steps, run.model.sim.time - t0, wall, cpu);
+    summary.shear = cost(steps, run.model.sim.time() - t0, wall, cpu);
     outcome?;
     if completed {
         run.frame()?;

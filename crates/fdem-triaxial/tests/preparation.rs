@@ -148,11 +148,11 @@ fn a_pile_under_gravity_keeps_a_friction_history() {
 fn a_restored_specimen_reproduces_the_checked_state_exactly() {
     for s in [small(), pile()] {
         let sim = s.simulation().unwrap();
-        assert_eq!(sim.state.positions, s.state.positions);
-        assert_eq!(sim.state.velocities, s.state.velocities);
-        assert_eq!(sim.time, s.state.time);
-        assert_eq!(sim.step, s.state.step);
-        assert_eq!(sim.dt, s.dt);
+        assert_eq!(sim.state().positions, s.state.positions);
+        assert_eq!(sim.state().velocities, s.state.velocities);
+        assert_eq!(sim.time(), s.state.time);
+        assert_eq!(sim.step(), s.state.step);
+        assert_eq!(sim.dt(), s.dt);
         // The checks were made on the state after the final restore in `prepare`; a
         // fresh restore gives the same forces to the last bit.
         let d = s.spec.simulated().unwrap().sizes[0];
@@ -186,11 +186,11 @@ fn a_saved_specimen_reloads_bit_for_bit_and_steps_identically() {
             a.advance().unwrap();
             b.advance().unwrap();
         }
-        assert_eq!(bits(&a.state.positions), bits(&b.state.positions));
-        assert_eq!(bits(&a.state.velocities), bits(&b.state.velocities));
+        assert_eq!(bits(&a.state().positions), bits(&b.state().positions));
+        assert_eq!(bits(&a.state().velocities), bits(&b.state().velocities));
         let (ha, hb) = (
-            a.contact().unwrap().model.export_history(),
-            b.contact().unwrap().model.export_history(),
+            a.contact().unwrap().model().export_history(),
+            b.contact().unwrap().model().export_history(),
         );
         assert_eq!(ha, hb);
         assert_eq!(
@@ -258,7 +258,7 @@ fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
 fn history_export_and_import_round_trip_and_refuse_foreign_entries() {
     let s = pile();
     let mut sim = s.simulation().unwrap();
-    let model = &mut sim.contact_mut().unwrap().model;
+    let model = sim.contact_mut().unwrap().model_mut();
     let exported = model.export_history();
     assert!(!exported.is_empty());
     model.import_history(&exported).unwrap();

@@ -1,0 +1,457 @@
+//! The model builder: the one way a [`Simulation`] is assembled, by scenes and by drivers
+//! such as the triaxial test alike.
+//!
+//! A model is a list of bodies of several kinds ([`BodyKind`]), each a contiguous range
+//! of nodes added in order, plus what acts on them: the elastic elements of deformable
+//! bodies, contact (surfaces, walls, the law), force contributions and constraints.
+//! Adding a contribution or a constraint returns a typed handle through which the driver
+//! reaches it between steps ([`Simulation::get_mut`]). [`ModelBuilder::build`] computes
+//! the element sets and lumped masses, the stable bound and the step, and the initial
+//! forces.
+
+use crate::engine::{Assembled, Guard, Parts, Simulation, TimeStep};
+use crate::forces::{Constraint, ElasticForces, ElementInput, ForceContribution, StepBound};
+use crate::{Body, BodyKind, ContactForces, NodeState, SolverError};
+use fdem_contact::{ContactModel, ContactParams, ContactSurface, Wall};
+use fdem_elastic::Material;
+use fdem_mesh::{MeshAssembly, Placement, TetMesh};
+use std::marker::PhantomData;
+
+/// Identifies a body of a model: its index in [`Simulation::bodies`], also its owner id
+/// on the contact surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct BodyId(pub usize);
+
+/// Identifies a wall of a model: its index in the contact model's walls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct WallId(pub usize);
+
+/// A typed handle to a force contribution of a model ([`ModelBuilder::add_contribution`]).
+pub struct Handle<T> {
+    index: usize,
+    kind: PhantomData<fn() -> T>,
+}
+
+/// A typed handle to a constraint of a model ([`ModelBuilder::add_constraint`]).
+pub struct ConstraintHandle<T> {
+    index: usize,
+    kind: PhantomData<fn() -> T>,
+}
+
+macro_rules! handle_impls {
+    ($name:ident) => {
+        impl<T> $name<T> {
+            fn new(index: usize) -> Self {
+                $name {
+                    index,
+                    kind: PhantomData,
+                }
+            }
+
+            pub(crate) fn index(self) -> usize {
+                self.index
+            }
+        }
+
+        impl<T> Clone for $name<T> {
+            fn clone(&self) -> Self {
+                *self
+            }
+        }
+
+        impl<T> Copy for $name<T> {}
+
+        impl<T> std::fmt::Debug for $name<T> {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{}({})", stringify!($name), self.index)
+            }
+        }
+
+        impl<T> PartialEq for $name<T> {
+            fn eq(&self, other: &Self) -> bool {
+                self.index == other.index
+            }
+        }
+
+        impl<T> Eq for $name<T> {}
+    };
+}
+
+handle_impls!(Handle);
+handle_impls!(ConstraintHandle);
+
+/// Initial rigid motion of a body: the velocity of its centre and its angular velocity
+/// about that centre.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct InitialMotion {
+    /// Velocity of the centre (m/s).
+    pub velocity: [f64; 3],
+    /// Angular velocity (rad/s).
+    pub angular_velocity: [f64; 3],
+}
+
+/// A sheet body ([`BodyKind::Sheet`]): nodes with masses and outward contact faces, no
+/// tetrahedra. Its in-plane forces are a contribution of the caller's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SheetBody {
+    /// Node positions (m), which are also the reference positions.
+    pub positions: Vec<[f64; 3]>,
+    /// Lumped node masses (kg), > 0.
+    pub masses: Vec<f64>,
+    /// Contact faces, body-local node ids, ordered so that their normal points to the
+    /// side the particles touch.
+    pub triangles: Vec<[usize; 3]>,
+    /// Control area of every node for the contact stiffness (m^2), > 0.
+    pub control_areas: Vec<f64>,
+}
+
+/// How contact is modelled: the law, the lengths of detection, and the depth at which a
+/// node behind a sheet is a fold artefact.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactSettings {
+    /// The penalty law (docs/MODEL.md section 2).
+    pub params: ContactParams,
+    /// The contact margin (m): Verlet skin of the broad phase and tunnelling scale.
+    pub margin: f64,
+    /// How far behind a face the narrow phase looks (m); `None` keeps the margin.
+    pub depth_limit: Option<f64>,
+    /// Depth behind a sheet (m) beyond which a particle node's hit is a fold artefact and
+    /// discarded; required when the model has sheet bodies.
+    pub sheet_fold_depth: Option<f64>,
+}
+
+/// Collects the bodies and everything acting on them, then builds the [`Simulation`].
+pub struct ModelBuilder {
+    reference: Vec<[f64; 3]>,
+    velocities: Vec<[f64; 3]>,
+    /// Lumped masses; deformable bodies' entries are filled in by [`ModelBuilder::build`].
+    masses: Vec<f64>,
+    bodies: Vec<Body>,
+    elements: Vec<ElementInput>,
+    nodes_per_element: usize,
+    connectivity: Vec<usize>,
+    surface: ContactSurface,
+    walls: Vec<Wall>,
+    contact: Option<ContactSettings>,
+    parts: Parts,
+    gravity: [f64; 3],
+    time_step: TimeStep,
+    guard: Guard,
+}
+
+impl Default for ModelBuilder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ModelBuilder {
+    /// An empty model: no gravity, an automatic step at half the stable bound, the
+    /// default guard.
+    pub fn new() -> Self {
+        ModelBuilder {
+            reference: Vec::new(),
+            velocities: Vec::new(),
+            masses: Vec::new(),
+            bodies: Vec::new(),
+            elements: Vec::new(),
+            nodes_per_element: 0,
+            connectivity: Vec::new(),
+            surface: ContactSurface::default(),
+            walls: Vec::new(),
+            contact: None,
+            parts: Parts {
+                contributions: Vec::new(),
+                constraints: Vec::new(),
+            },
+            gravity: [0.0; 3],
+            time_step: TimeStep::Automatic {
+                safety: crate::DEFAULT_DT_SAFETY,
+            },
+            guard: Guard::default(),
+        }
+    }
+
+    /// Adds a deformable particle: `template` placed by `placement` (nodes, tetrahedra,
+    /// outward surface with control areas), of `material`, moving rigidly with `motion`
+    /// about `placement.translation`.
+    ///
+    /// # Errors
+    /// A template or placement that fdem-mesh refuses, or a template whose element order
+    /// differs from the bodies added before (one order per model).
+    pub fn add_deformable(
+        &mut self,
+        template: &TetMesh,
+        placement: &Placement,
+        material: &Material,
+        motion: InitialMotion,
+    ) -> Result<BodyId, SolverError> {
+        let mut one = MeshAssembly::new();
+        one.push_instance(template, placement)?;
+        let npe = one.nodes_per_element();
+        if self.nodes_per_element != 0 && npe != self.nodes_per_element {
+            return Err(SolverError::InvalidScene(format!(
+                "body {} has {npe}-node elements but the bodies before it {}-node ones; \
+                 use one element order in a model",
+                self.bodies.len(),
+                self.nodes_per_element
+            )));
+        }
+        self.nodes_per_element = npe;
+        let id = self.bodies.len();
+        let first = self.reference.len();
+        let first_element = self.connectivity.len() / npe;
+        self.push_surface(
+            id,
+            first,
+            &one.triangles,
+            &one.surface_nodes,
+            &one.control_areas,
+        )?;
+        for x in &one.nodes {
+            let r = [
+                x[0] - placement.translation[0],
+                x[1] - placement.translation[1],
+                x[2] - placement.translation[2],
+            ];
+            let u = crate::body::cross(motion.angular_velocity, r);
+            let v = motion.velocity;
+            self.velocities
+                .push([v[0] + u[0], v[1] + u[1], v[2] + u[2]]);
+        }
+        self.reference.extend_from_slice(&one.nodes);
+        self.masses.resize(self.reference.len(), 0.0);
+        self.connectivity
+            .extend(one.elements.iter().map(|&i| i + first));
+        let nodes = first..self.reference.len();
+        let elements = first_element..first_element + one.n_elements();
+        self.elements.push(ElementInput {
+            body: id,
+            nodes: nodes.clone(),
+            material: *material,
+            nodes_per_element: npe,
+            connectivity: one.elements,
+        });
+        self.bodies.push(Body {
+            kind: BodyKind::Deformable,
+            nodes,
+            elements,
+        });
+        Ok(BodyId(id))
+    }
+
+    /// Adds a sheet body (a membrane) at rest.
+    ///
+    /// # Errors
+    /// Arrays of different lengths or a face naming a node the sheet does not have.
+    pub fn add_sheet(&mut self, sheet: SheetBody) -> Result<BodyId, SolverError> {
+        let n = sheet.positions.len();
+        if sheet.masses.len() != n || sheet.control_areas.len() != n {
+            return Err(SolverError::InvalidScene(format!(
+                "a sheet of {n} nodes has {} masses and {} control areas; give one per node",
+                sheet.masses.len(),
+                sheet.control_areas.len()
+            )));
+        }
+        if let Some(t) = sheet.triangles.iter().find(|t| t.iter().any(|&i| i >= n)) {
+            return Err(SolverError::InvalidScene(format!(
+                "sheet face {t:?} names a node beyond the sheet's {n} nodes"
+            )));
+        }
+        let id = self.bodies.len();
+        let first = self.reference.len();
+        let nodes: Vec<usize> = (0..n).collect();
+        self.push_surface(id, first, &sheet.triangles, &nodes, &sheet.control_areas)?;
+        self.reference.extend_from_slice(&sheet.positions);
+        self.velocities.resize(self.reference.len(), [0.0; 3]);
+        self.masses.extend_from_slice(&sheet.masses);
+        let first_element = self.connectivity.len() / self.nodes_per_element.max(1);
+        self.bodies.push(Body {
+            kind: BodyKind::Sheet,
+            nodes: first..self.reference.len(),
+            elements: first_element..first_element,
+        });
+        Ok(BodyId(id))
+    }
+
+    /// Adds the surface of body `id`, whose nodes start at global node `first`.
+    fn push_surface(
+        &mut self,
+        id: usize,
+        first: usize,
+        triangles: &[[usize; 3]],
+        nodes: &[usize],
+        areas: &[f64],
+    ) -> Result<(), SolverError> {
+        let body = u32::try_from(id).map_err(|_| {
+            SolverError::InvalidScene(format!("{id} bodies are more than a model can hold"))
+        })?;
+        let triangles: Vec<[usize; 3]> = triangles.iter().map(|t| t.map(|i| i + first)).collect();
+        let nodes: Vec<usize> = nodes.iter().map(|i| i + first).collect();
+        self.surface.push_body(body, &triangles, &nodes, areas)?;
+        Ok(())
+    }
+
+    /// Adds a rigid wall of the contact model.
+    pub fn add_wall(&mut self, wall: Wall) -> WallId {
+        self.walls.push(wall);
+        WallId(self.walls.len() - 1)
+    }
+
+    /// Models contact with these settings (no contact without them).
+    pub fn set_contact(&mut self, settings: ContactSettings) {
+        self.contact = Some(settings);
+    }
+
+    /// Adds a force contribution, evaluated after contact in the order added.
+    pub fn add_contribution<T: ForceContribution>(&mut self, contribution: T) -> Handle<T> {
+        self.parts.contributions.push(Box::new(contribution));
+        Handle::new(self.parts.contributions.len() - 1)
+    }
+
+    /// Adds a constraint, applied after all forces in the order added.
+    pub fn add_constraint<T: Constraint>(&mut self, constraint: T) -> ConstraintHandle<T> {
+        self.parts.constraints.push(Box::new(constraint));
+        ConstraintHandle::new(self.parts.constraints.len() - 1)
+    }
+
+    /// Gravitational acceleration (m/s^2), applied as `m g` on every node.
+    pub fn set_gravity(&mut self, gravity: [f64; 3]) {
+        self.gravity = gravity;
+    }
+
+    /// How the step is chosen.
+    pub fn set_time_step(&mut self, time_step: TimeStep) {
+        self.time_step = time_step;
+    }
+
+    /// The stability guard's settings.
+    pub fn set_guard(&mut self, guard: Guard) {
+        self.guard = guard;
+    }
+
+    /// A body added so far.
+    pub fn body(&self, id: BodyId) -> Option<&Body> {
+        self.bodies.get(id.0)
+    }
+
+    /// Number of nodes so far.
+    pub fn n_nodes(&self) -> usize {
+        self.reference.len()
+    }
+
+    /// Number of elements so far.
+    pub fn n_elements(&self) -> usize {
+        self.connectivity.len() / self.nodes_per_element.max(1)
+    }
+
+    /// Number of bodies so far.
+    pub fn n_bodies(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Reference positions of the nodes so far (m).
+    pub fn reference_positions(&self) -> &[[f64; 3]] {
+        &self.reference
+    }
+
+    /// The shortest edge of the contact faces added so far (m), in the reference
+    /// configuration: the length scale of the default contact margin.
+    pub fn shortest_surface_edge(&self) -> Option<f64> {
+        self.surface.shortest_edge(&self.reference)
+    }
+
+    /// Builds the simulation: the element sets and lumped masses of the deformable
+    /// bodies, the contact model, the stable bound (elastic combined with contact, then
+    /// the smallest with every contribution's, [`StepBound::of_model`]), the step, and the
+    /// initial forces and energy.
+    ///
+    /// # Errors
+    /// Element, contact or step errors, and walls or sheets without contact settings.
+    pub fn build(self) -> Result<Simulation, SolverError> {
+        let elastic = ElasticForces::new(&self.elements, &self.reference)?;
+        let mut masses = self.masses;
+        for b in &elastic.bodies {
+            masses[b.nodes.clone()].copy_from_slice(&b.set.lumped_masses(b.nodes.len()));
+        }
+        let mut state = NodeState::new(self.reference, masses);
+        state.velocities = self.velocities;
+        let sheets: Vec<u32> = (0..self.bodies.len() as u32)
+            .filter(|&b| self.bodies[b as usize].kind == BodyKind::Sheet)
+            .collect();
+        let contact = match self.contact {
+            Some(settings) => Some(contact_stage(
+                settings,
+                self.surface,
+                self.walls,
+                &state.masses,
+                &sheets,
+            )?),
+            None if self.walls.is_empty() && sheets.is_empty() => None,
+            None => {
+                return Err(SolverError::InvalidScene(
+                    "the model has walls or sheets but no contact; give it contact settings".into(),
+                ));
+            }
+        };
+        let bound = StepBound::of_model(
+            elastic.stable_time_step(),
+            contact.as_ref().and_then(ContactForces::stable_time_step),
+            self.parts
+                .contributions
+                .iter()
+                .map(|c| c.stable_time_step(&state.masses)),
+        )
+        .unwrap_or(StepBound {
+            dt: f64::INFINITY,
+            source: "nothing (no elements or contacts)".into(),
+        });
+        let dt = match self.time_step {
+            TimeStep::Fixed(dt) => dt,
+            TimeStep::Automatic { safety } => safety * bound.dt,
+        };
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(SolverError::InvalidScene(format!(
+                "time step {dt:e} s is not a positive finite number (stable bound {:e} s set by {}); \
+                 give simulation.dt explicitly",
+                bound.dt, bound.source
+            )));
+        }
+        Simulation::new(Assembled {
+            state,
+            bodies: self.bodies,
+            nodes_per_element: self.nodes_per_element,
+            connectivity: self.connectivity,
+            elastic,
+            contact,
+            parts: self.parts,
+            gravity: self.gravity,
+            bound,
+            dt,
+            guard: self.guard,
+        })
+    }
+}
+
+/// The contact model of `settings` on `surface` and `walls`, with `sheets` declared.
+fn contact_stage(
+    settings: ContactSettings,
+    surface: ContactSurface,
+    walls: Vec<Wall>,
+    masses: &[f64],
+    sheets: &[u32],
+) -> Result<ContactForces, SolverError> {
+    let mut model = ContactModel::new(settings.params, surface, walls, masses, settings.margin)?;
+    if let Some(depth_limit) = settings.depth_limit {
+        model.set_depth_limit(depth_limit)?;
+    }
+    if !sheets.is_empty() {
+        let fold_depth = settings.sheet_fold_depth.ok_or_else(|| {
+            SolverError::InvalidScene(
+                "the model has sheet bodies; give the contact settings a sheet fold depth".into(),
+            )
+        })?;
+        model.set_sheet_bodies(sheets, fold_depth)?;
+    }
+    Ok(ContactForces::new(model))
+}
