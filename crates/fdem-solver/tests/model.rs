@@ -2,6 +2,9 @@
 //! after every force, contributions' bounds enter the stable step, a hand-built model is
 //! the scene's model bit for bit, and inconsistent models are refused with one message.
 
+// Component loops over x, y, z read best with an index.
+#![allow(clippy::needless_range_loop)]
+
 use fdem_contact::{ContactParams, Wall};
 use fdem_elastic::Material;
 use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
