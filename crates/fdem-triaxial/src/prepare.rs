@@ -688,19 +688,7 @@ pub fn prepare(
     let wall_clock = Instant::now();
     let cpu = cpu_time::ProcessTime::try_now().ok();
     let counts = spec.counts()?;
-    if counts.nodes > MAX_NODES {
-        return Err(TriaxialError::Definition {
-            origin: spec.name.clone(),
-            line: 0,
-            column: 0,
-            key: "gradation".into(),
-            message: format!(
-                "{} particles with {} nodes are more than one preparation handles ({MAX_NODES} \
-                 nodes); use larger sizes, a coarse_graining factor or a smaller specimen",
-                counts.particles, counts.nodes
-            ),
-        });
-    }
+    check_size(spec, &counts)?;
     let sizes = spec.simulated()?.sizes;
     let d_min = sizes.iter().copied().fold(f64::INFINITY, f64::min);
     let d_max = sizes.iter().copied().fold(0.0, f64::max);
@@ -717,28 +705,16 @@ pub fn prepare(
         compact_steps = ((wanted / (prep.platen_speed * dt)).ceil() as u64).max(1);
         prep.platen_speed * dt * compact_steps as f64
     })?;
-    let speed = prep.platen_speed;
-
-    // Compaction.
     let sections = particle_sections(spec, &particles);
-    let walls = preparation_walls(column.radius, column.bottom, column.top, 0.5 * speed);
-    let mut sim = scene(spec, sections.clone(), walls, Some(dt))?
-        .build()
-        .map_err(solver("compact"))?;
-    observer.phase(Phase::Compact, compact_steps);
-    let compacted = match run_phase(&mut sim, compact_steps, Phase::Compact, observer) {
-        Ok(snapshot) => snapshot,
-        Err(TriaxialError::Solver { cause, .. }) => {
-            let gap = platen_gap(&sim);
-            return Err(TriaxialError::Compaction {
-                gap,
-                target: spec.height,
-                solid_fraction: counts.solid_volume / (spec.inner_area() * gap),
-                cause,
-            });
-        }
-        Err(e) => return Err(e),
-    };
+    let compacted = compact(
+        spec,
+        &counts,
+        &sections,
+        &column,
+        dt,
+        compact_steps,
+        observer,
+    )?;
 
     // Settling: platens fixed exactly at the target.
     let walls = preparation_walls(column.radius, 0.0, spec.height, 0.0);
@@ -746,46 +722,8 @@ pub fn prepare(
         .build()
         .map_err(solver("settle"))?;
     compacted.restore_into(&mut sim, true)?;
-    let interval = prep.check_interval;
-    let f_ref = spec.confining_pressure * d_min * d_min;
     let settle_time = prep.settle_time.unwrap_or(2.0 * d_max / prep.platen_speed);
-    let max_steps = ((settle_time / (dt * interval as f64)).ceil() as u64).max(1) * interval;
-    observer.phase(Phase::Settle, max_steps);
-    let mut settle_steps = 0;
-    let mut settled = false;
-    let mut quenches = 0u64;
-    let mut ke_prev = 0.0;
-    let mut rising = false;
-    let n_nodes = sim.state().len();
-    while settle_steps < max_steps {
-        sim.advance().map_err(solver("settle"))?;
-        settle_steps += 1;
-        // Kinetic damping: when the kinetic energy has passed a peak, stop every node.
-        let ke = sim.state().kinetic_energy(0..n_nodes);
-        if rising && ke < ke_prev {
-            quench(&mut sim)?;
-            quenches += 1;
-            ke_prev = 0.0;
-            rising = false;
-        } else {
-            rising = ke > ke_prev;
-            ke_prev = ke;
-        }
-        if settle_steps % interval == 0 {
-            let ratio = unbalanced_force_ratio(&sim, f_ref);
-            if !observer.progress(Phase::Settle, &status(&sim, settle_steps, Some(ratio))) {
-                return Err(TriaxialError::Interrupted {
-                    phase: "settle",
-                    step: sim.step(),
-                });
-            }
-            if ratio <= prep.unbalanced_force {
-                settled = true;
-                break;
-            }
-        }
-    }
-    let residual_kinetic_energy = sim.state().kinetic_energy(0..n_nodes);
+    let settling = settle(&mut sim, spec, settle_time, d_min, observer)?;
     // The specimen is kept at rest.
     let last = quench(&mut sim)?;
 
@@ -809,10 +747,10 @@ pub fn prepare(
         dt,
         dt_bound,
         dt_bound_source,
-        platen_speed: speed,
+        platen_speed: prep.platen_speed,
         compact_steps,
-        settle_steps,
-        settled,
+        settle_steps: settling.steps,
+        settled: settling.settled,
         simulated_time: sim.time(),
         wall_seconds: wall_clock.elapsed().as_secs_f64(),
         cpu_seconds: cpu.map(|c| c.elapsed().as_secs_f64()),
@@ -824,8 +762,8 @@ pub fn prepare(
         node_contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()) as u64,
         particle_contacts: pairs,
         coordination_number: 2.0 * pairs as f64 / counts.particles as f64,
-        residual_kinetic_energy,
-        quenches,
+        residual_kinetic_energy: settling.residual_kinetic_energy,
+        quenches: settling.quenches,
         checks,
     };
     Ok(PreparedSpecimen {
@@ -834,6 +772,117 @@ pub fn prepare(
         dt,
         state: last,
         report,
+    })
+}
+
+/// Refuses a specimen larger than one preparation handles, before any work.
+fn check_size(spec: &SpecimenSpec, counts: &crate::Counts) -> Result<(), TriaxialError> {
+    if counts.nodes > MAX_NODES {
+        return Err(TriaxialError::Definition {
+            origin: spec.name.clone(),
+            line: 0,
+            column: 0,
+            key: "gradation".into(),
+            message: format!(
+                "{} particles with {} nodes are more than one preparation handles ({MAX_NODES} \
+                 nodes); use larger sizes, a coarse_graining factor or a smaller specimen",
+                counts.particles, counts.nodes
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Compaction: the platens close at half the platen speed each for `steps` steps; a
+/// contact the law refuses stops it with the gap reached.
+fn compact(
+    spec: &SpecimenSpec,
+    counts: &crate::Counts,
+    sections: &[ParticleSection],
+    column: &Column,
+    dt: f64,
+    steps: u64,
+    observer: &mut dyn Observer,
+) -> Result<Snapshot, TriaxialError> {
+    let speed = spec.preparation.platen_speed;
+    let walls = preparation_walls(column.radius, column.bottom, column.top, 0.5 * speed);
+    let mut sim = scene(spec, sections.to_vec(), walls, Some(dt))?
+        .build()
+        .map_err(solver("compact"))?;
+    observer.phase(Phase::Compact, steps);
+    match run_phase(&mut sim, steps, Phase::Compact, observer) {
+        Ok(snapshot) => Ok(snapshot),
+        Err(TriaxialError::Solver { cause, .. }) => {
+            let gap = platen_gap(&sim);
+            Err(TriaxialError::Compaction {
+                gap,
+                target: spec.height,
+                solid_fraction: counts.solid_volume / (spec.inner_area() * gap),
+                cause,
+            })
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// How settling ended.
+struct Settling {
+    steps: u64,
+    settled: bool,
+    quenches: u64,
+    residual_kinetic_energy: f64,
+}
+
+/// Settling with kinetic damping (every node stopped when the kinetic energy has passed
+/// a peak) until the unbalanced-force ratio reaches `preparation.unbalanced_force` or
+/// `settle_time` has passed.
+fn settle(
+    sim: &mut Simulation,
+    spec: &SpecimenSpec,
+    settle_time: f64,
+    d_min: f64,
+    observer: &mut dyn Observer,
+) -> Result<Settling, TriaxialError> {
+    let prep = &spec.preparation;
+    let interval = prep.check_interval;
+    let f_ref = spec.confining_pressure * d_min * d_min;
+    let max_steps = ((settle_time / (sim.dt() * interval as f64)).ceil() as u64).max(1) * interval;
+    observer.phase(Phase::Settle, max_steps);
+    let (mut steps, mut settled, mut quenches) = (0, false, 0u64);
+    let (mut ke_prev, mut rising) = (0.0, false);
+    let n_nodes = sim.state().len();
+    while steps < max_steps {
+        sim.advance().map_err(solver("settle"))?;
+        steps += 1;
+        let ke = sim.state().kinetic_energy(0..n_nodes);
+        if rising && ke < ke_prev {
+            quench(sim)?;
+            quenches += 1;
+            ke_prev = 0.0;
+            rising = false;
+        } else {
+            rising = ke > ke_prev;
+            ke_prev = ke;
+        }
+        if steps % interval == 0 {
+            let ratio = unbalanced_force_ratio(sim, f_ref);
+            if !observer.progress(Phase::Settle, &status(sim, steps, Some(ratio))) {
+                return Err(TriaxialError::Interrupted {
+                    phase: "settle",
+                    step: sim.step(),
+                });
+            }
+            if ratio <= prep.unbalanced_force {
+                settled = true;
+                break;
+            }
+        }
+    }
+    Ok(Settling {
+        steps,
+        settled,
+        quenches,
+        residual_kinetic_energy: sim.state().kinetic_energy(0..n_nodes),
     })
 }
 

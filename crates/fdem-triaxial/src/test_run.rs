@@ -604,59 +604,96 @@ fn stages(
     observer: &mut dyn TestObserver,
     interrupt: &AtomicBool,
 ) -> Result<bool, TriaxialError> {
+    let stop = |observer_ok: bool| !observer_ok || interrupt.load(Ordering::Relaxed);
+    if !consolidate(run, summary, observer, &stop)? {
+        return Ok(false);
+    }
+    shear(run, summary, points, peak, observer, &stop)
+}
+
+fn solver(phase: &'static str) -> impl Fn(fdem_solver::SolverError) -> TriaxialError {
+    move |e| TriaxialError::Test {
+        phase,
+        message: e.to_string(),
+    }
+}
+
+/// The consolidation's target pressure: from the lateral stress the preparation left (at
+/// most sigma_0) to sigma_0 over the ramp; the servo follows the same target.
+#[derive(Clone, Copy, Debug)]
+struct Ramp {
+    t_start: f64,
+    ramp_time: f64,
+    start_pressure: f64,
+    sigma_0: f64,
+}
+
+impl Ramp {
+    fn at(&self, t: f64) -> f64 {
+        let f = ((t - self.t_start) / self.ramp_time).clamp(0.0, 1.0);
+        self.start_pressure + f * (self.sigma_0 - self.start_pressure)
+    }
+}
+
+/// The consolidation's equilibrium measures between checks.
+struct Equilibrium {
+    ramp: Ramp,
+    reference: Reference,
+    strain_rate: f64,
+    /// Time and volume of the previous check.
+    last_volume: (f64, f64),
+}
+
+/// Step 1: the pressure ramps up while a proportional servo on the top platen holds the
+/// axial stress at the target; ends when every equilibrium criterion holds (`Ok(true)`),
+/// when interrupted (`Ok(false)`) or when the planned steps run out (an error).
+fn consolidate(
+    run: &mut Run<'_>,
+    summary: &mut TestSummary,
+    observer: &mut dyn TestObserver,
+    stop: &dyn Fn(bool) -> bool,
+) -> Result<bool, TriaxialError> {
     let spec = &run.prepared.spec;
     let test = spec.test.clone();
     let velocity = spec.loading_velocity();
-    let dir = run.options.out_dir.clone();
-    let stop = |observer_ok: bool| !observer_ok || interrupt.load(Ordering::Relaxed);
-    let solver = |phase: &'static str| {
-        move |e: fdem_solver::SolverError| TriaxialError::Test {
-            phase,
-            message: e.to_string(),
-        }
-    };
-
-    // ---- Step 1: consolidation, servo on the top platen ----
     run.check_escape("consolidation")?;
     run.frame()?;
-    let wall = Instant::now();
-    let cpu = cpu_now();
+    let (wall, cpu) = (Instant::now(), cpu_now());
     let planned = summary.plan.consolidation_steps_max;
     observer.phase(TestPhase::Consolidation, planned);
-    let log_path = dir.join("consolidation.csv");
+    let log_path = run.options.out_dir.join("consolidation.csv");
     let mut log = CurveWriter::new(&log_path).map_err(io(&log_path))?;
     summary.outputs.push("consolidation.csv".into());
-    let prepared_state = Reference {
-        h0: run.model.height(),
-        v0: run.model.volume(),
+    let ramp = Ramp {
+        t_start: run.model.sim.time(),
+        ramp_time: test.ramp_time.unwrap_or(0.01 * spec.height / velocity),
+        start_pressure: run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0),
         sigma_0: run.sigma_0,
     };
-    let v_max = test.servo_speed * velocity;
-    // The pressure rises from the lateral stress the preparation left (at most sigma_0)
-    // to sigma_0 over the ramp; the servo follows the same target.
-    let ramp_time = test.ramp_time.unwrap_or(0.01 * spec.height / velocity);
-    let start_pressure = run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0);
-    let t_start = run.model.sim.time();
-    let sigma_0 = run.sigma_0;
-    let target = move |t: f64| {
-        let f = ((t - t_start) / ramp_time).clamp(0.0, 1.0);
-        start_pressure + f * (sigma_0 - start_pressure)
+    let mut watch = Equilibrium {
+        ramp,
+        reference: Reference {
+            h0: run.model.height(),
+            v0: run.model.volume(),
+            sigma_0: run.sigma_0,
+        },
+        strain_rate: velocity / spec.height,
+        last_volume: (run.model.sim.time(), run.model.volume()),
     };
-    let strain_rate = velocity / spec.height;
-    let mut last_volume = (run.model.sim.time(), run.model.volume());
+    let v_max = test.servo_speed * velocity;
     // Forces and the energy reference at the starting pressure.
-    run.model.set_pressure(target(t_start));
+    run.model.set_pressure(ramp.at(ramp.t_start));
     run.model
         .sim
         .rebase_energy()
         .map_err(solver("consolidation"))?;
     run.energy = EnergyWindows::start(&mut run.model.sim);
     let mut steps = 0u64;
-    let mut result = &mut summary.consolidation;
-    loop {
-        let pressure = target(run.model.sim.time());
+    let outcome = loop {
+        let pressure = ramp.at(run.model.sim.time());
         run.model.set_pressure(pressure);
         let ratio = run.stress_ratio();
+        let result = &mut summary.consolidation;
         result.max_overshoot = result.max_overshoot.max(ratio - 1.0);
         // Proportional servo, saturated: full speed at `servo_band` relative error.
         let error = (pressure / run.sigma_0 - ratio) / test.servo_band;
@@ -665,89 +702,145 @@ fn stages(
         run.model.sim.advance().map_err(solver("consolidation"))?;
         steps += 1;
         if steps == CALIBRATION_STEPS {
-            let per_step = wall.elapsed().as_secs_f64() / steps as f64;
-            let plan = &mut summary.plan;
-            plan.seconds_per_step = per_step;
-            plan.estimated_shear_seconds = per_step * plan.shear_steps as f64;
-            plan.estimated_seconds_max =
-                per_step * (plan.shear_steps + plan.consolidation_steps_max) as f64;
-            observer.plan(plan);
-            result = &mut summary.consolidation;
+            calibrate(&mut summary.plan, wall, steps);
+            observer.plan(&summary.plan);
         }
         if steps.is_multiple_of(test.check_interval) || steps >= planned {
-            run.energy.close(&mut run.model.sim);
-            let m = run.measurement();
-            let point = CurvePoint::from_measurement(&m, &prepared_state);
-            log.push(&point).map_err(io(&log_path))?;
-            run.check_escape("consolidation")?;
-            let e = run.model.sim.energy();
-            let stored = e.strain + e.other_potential;
-            result.stress_ratio = point.sigma_a / run.sigma_0;
-            result.unbalanced_force = m.unbalanced_force;
-            result.kinetic_ratio = if stored > 0.0 {
-                e.kinetic / stored
-            } else {
-                f64::INFINITY
-            };
-            let (t_prev, v_prev) = last_volume;
-            let elapsed = (m.time - t_prev).max(f64::MIN_POSITIVE);
-            result.volume_rate = (m.volume / v_prev).ln().abs() / elapsed / strain_rate;
-            last_volume = (m.time, m.volume);
-            result.reached = run.model.sim.time() - t_start >= ramp_time
-                && result.volume_rate <= test.volume_rate
-                && (result.stress_ratio - 1.0).abs() <= test.stress_tolerance
-                && result.unbalanced_force <= test.unbalanced_force
-                && result.kinetic_ratio <= test.kinetic_ratio;
-            let ok = observer.progress(&TestStatus {
-                phase: TestPhase::Consolidation,
-                steps,
-                planned_steps: planned,
-                eps_a: 0.0,
-                stress_ratio: result.stress_ratio,
-                eta: point.eta,
-            });
-            if result.reached {
-                break;
+            let ok = check_equilibrium(
+                run, &mut watch, summary, &mut log, &log_path, observer, steps,
+            )?;
+            if summary.consolidation.reached {
+                break Ok(true);
             }
             if stop(ok) {
-                result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
-                return Ok(false);
+                break Ok(false);
             }
             if steps >= planned {
-                result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
-                return Err(TriaxialError::Test {
-                    phase: "consolidation",
-                    message: format!(
-                        "no equilibrium after {steps} steps ({:e} s): axial stress {:.4} x \
-                         sigma_0 (tolerance {}), unbalanced force {:.3e} (limit {}), kinetic \
-                         ratio {:.3e} (limit {}), volume rate {:.3e} (limit {}); raise \
-                         test.consolidation_time or relax the limits",
-                        steps as f64 * run.model.sim.dt(),
-                        result.stress_ratio,
-                        test.stress_tolerance,
-                        result.unbalanced_force,
-                        test.unbalanced_force,
-                        result.kinetic_ratio,
-                        test.kinetic_ratio,
-                        result.volume_rate,
-                        test.volume_rate
-                    ),
-                });
+                break Err(no_equilibrium(
+                    &summary.consolidation,
+                    &test,
+                    steps,
+                    run.model.sim.dt(),
+                ));
             }
         } else if steps.is_multiple_of(PROGRESS_STEPS) && stop(true) {
-            result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
-            return Ok(false);
+            break Ok(false);
         }
-    }
-    result.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
-    result.energy_balance_error = {
-        run.energy.close(&mut run.model.sim);
-        run.energy.relative()
     };
-    drop(log);
+    summary.consolidation.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
+    if let Ok(true) = outcome {
+        run.energy.close(&mut run.model.sim);
+        summary.consolidation.energy_balance_error = run.energy.relative();
+    }
+    outcome
+}
 
-    // ---- Step 2: shear at constant velocity ----
-    run.model.set_top_velocity(-velocity)?;
+/// The plan's cost estimate from the first `steps` steps' wall time.
+fn calibrate(plan: &mut TestPlan, wall: Instant, steps: u64) {
+    let per_step = wall.elapsed().as_secs_f64() / steps as f64;
+    plan.seconds_per_step = per_step;
+    plan.estimated_shear_seconds = per_step * plan.shear_steps as f64;
+    plan.estimated_seconds_max =
+        per_step * (plan.shear_steps + plan.consolidation_steps_max) as f64;
+}
+
+/// One consolidation check: closes the energy window, logs a row, checks containment and
+/// evaluates the equilibrium criteria into `summary.consolidation`; returns whether the
+/// observer wants to go on.
+fn check_equilibrium(
+    run: &mut Run<'_>,
+    watch: &mut Equilibrium,
+    summary: &mut TestSummary,
+    log: &mut CurveWriter,
+    log_path: &Path,
+    observer: &mut dyn TestObserver,
+    steps: u64,
+) -> Result<bool, TriaxialError> {
+    let test = &run.prepared.spec.test;
+    run.energy.close(&mut run.model.sim);
+    let m = run.measurement();
+    let point = CurvePoint::from_measurement(&m, &watch.reference);
+    log.push(&point).map_err(io(log_path))?;
+    run.check_escape("consolidation")?;
+    let e = run.model.sim.energy();
+    let stored = e.strain + e.other_potential;
+    let result = &mut summary.consolidation;
+    result.stress_ratio = point.sigma_a / run.sigma_0;
+    result.unbalanced_force = m.unbalanced_force;
+    result.kinetic_ratio = if stored > 0.0 {
+        e.kinetic / stored
+    } else {
+        f64::INFINITY
+    };
+    let (t_prev, v_prev) = watch.last_volume;
+    let elapsed = (m.time - t_prev).max(f64::MIN_POSITIVE);
+    result.volume_rate = (m.volume / v_prev).ln().abs() / elapsed / watch.strain_rate;
+    watch.last_volume = (m.time, m.volume);
+    result.reached = run.model.sim.time() - watch.ramp.t_start >= watch.ramp.ramp_time
+        && result.volume_rate <= test.volume_rate
+        && (result.stress_ratio - 1.0).abs() <= test.stress_tolerance
+        && result.unbalanced_force <= test.unbalanced_force
+        && result.kinetic_ratio <= test.kinetic_ratio;
+    Ok(observer.progress(&TestStatus {
+        phase: TestPhase::Consolidation,
+        steps,
+        planned_steps: summary.plan.consolidation_steps_max,
+        eps_a: 0.0,
+        stress_ratio: result.stress_ratio,
+        eta: point.eta,
+    }))
+}
+
+/// The error of a consolidation that found no equilibrium in its planned steps.
+fn no_equilibrium(
+    result: &ConsolidationResult,
+    test: &crate::TestSection,
+    steps: u64,
+    dt: f64,
+) -> TriaxialError {
+    TriaxialError::Test {
+        phase: "consolidation",
+        message: format!(
+            "no equilibrium after {steps} steps ({:e} s): axial stress {:.4} x \
+             sigma_0 (tolerance {}), unbalanced force {:.3e} (limit {}), kinetic \
+             ratio {:.3e} (limit {}), volume rate {:.3e} (limit {}); raise \
+             test.consolidation_time or relax the limits",
+            steps as f64 * dt,
+            result.stress_ratio,
+            test.stress_tolerance,
+            result.unbalanced_force,
+            test.unbalanced_force,
+            result.kinetic_ratio,
+            test.kinetic_ratio,
+            result.volume_rate,
+            test.volume_rate
+        ),
+    }
+}
+
+/// The shear's progress between outputs.
+struct ShearCurve {
+    reference: Reference,
+    writer: CurveWriter,
+    path: std::path::PathBuf,
+    tracker: PeakTracker,
+    /// Axial strain of the next output row.
+    next_output: f64,
+}
+
+/// Step 2: shear at constant velocity to the target strain, a curve row every
+/// `test.output_strain`; `Ok(false)` when interrupted.
+fn shear(
+    run: &mut Run<'_>,
+    summary: &mut TestSummary,
+    points: &mut Vec<CurvePoint>,
+    peak: &mut Option<(String, String)>,
+    observer: &mut dyn TestObserver,
+    stop: &dyn Fn(bool) -> bool,
+) -> Result<bool, TriaxialError> {
+    let test = run.prepared.spec.test.clone();
+    run.model
+        .set_top_velocity(-run.prepared.spec.loading_velocity())?;
     // The shear's balance starts afresh (docs/TRIAXIAL.md, "Energy balance").
     run.energy = EnergyWindows::start(&mut run.model.sim);
     let reference = Reference {
@@ -755,92 +848,96 @@ fn stages(
         v0: run.model.volume(),
         sigma_0: run.sigma_0,
     };
-    let wall = Instant::now();
-    let cpu = cpu_now();
+    let (wall, cpu) = (Instant::now(), cpu_now());
     let planned = summary.plan.shear_steps;
     observer.phase(TestPhase::Shear, planned);
-    let curve_path = dir.join("curve.csv");
-    let mut curve = CurveWriter::new(&curve_path).map_err(io(&curve_path))?;
+    let path = run.options.out_dir.join("curve.csv");
+    let mut curve = ShearCurve {
+        writer: CurveWriter::new(&path).map_err(io(&path))?,
+        path,
+        reference,
+        tracker: PeakTracker::new(),
+        next_output: test.output_strain,
+    };
     summary.outputs.push("curve.csv".into());
-    let start = run.measurement();
-    let first = CurvePoint::from_measurement(&start, &reference);
-    curve.push(&first).map_err(io(&curve_path))?;
+    let first = CurvePoint::from_measurement(&run.measurement(), &reference);
+    curve.writer.push(&first).map_err(io(&curve.path))?;
     points.push(first);
-    let mut tracker = PeakTracker::new();
-    tracker.observe(first.eta);
+    curve.tracker.observe(first.eta);
     *peak = run.snapshot();
     summary.peak_snapshot_eps_a = Some(first.eps_a);
-    let mut next_output = test.output_strain;
-    let mut steps = 0u64;
-    let t0 = run.model.sim.time();
-    let mut completed = true;
+    let (mut steps, t0) = (0u64, run.model.sim.time());
     // Errors leave the loop with the cost of the steps taken recorded.
-    let outcome: Result<(), TriaxialError> = loop {
+    let outcome: Result<bool, TriaxialError> = loop {
         if let Err(e) = run.model.sim.advance() {
             break Err(solver("shear")(e));
         }
         steps += 1;
         let eps_a = crate::measure::axial_strain(reference.h0, run.model.height());
         let done = eps_a >= test.target_strain;
-        if eps_a >= next_output || done {
-            run.energy.close(&mut run.model.sim);
-            let m = run.measurement();
-            let point = CurvePoint::from_measurement(&m, &reference);
-            if let Err(e) = curve.push(&point) {
-                break Err(io(&curve_path)(e));
-            }
-            points.push(point);
-            if tracker.observe(point.eta) {
-                *peak = run.snapshot();
-                summary.peak_snapshot_eps_a = Some(point.eps_a);
-            }
-            if let Err(e) = run.check_escape("shear") {
-                break Err(e);
-            }
-            if points.len().is_multiple_of(ROWS_PER_FRAME)
-                && let Err(e) = run.frame()
-            {
-                break Err(e);
-            }
-            while next_output <= eps_a {
-                next_output += test.output_strain;
-            }
-            let ok = observer.progress(&TestStatus {
-                phase: TestPhase::Shear,
-                steps,
-                planned_steps: planned,
-                eps_a,
-                stress_ratio: point.sigma_a / run.sigma_0,
-                eta: point.eta,
-            });
-            if done {
-                break Ok(());
-            }
-            if stop(ok) {
-                completed = false;
-                break Ok(());
+        let status = if eps_a >= curve.next_output || done {
+            match shear_output(run, &mut curve, summary, points, peak, eps_a) {
+                Ok(point) => Some((point.sigma_a / run.sigma_0, point.eta)),
+                Err(e) => break Err(e),
             }
         } else if steps.is_multiple_of(PROGRESS_STEPS) {
+            Some((f64::NAN, points.last().map_or(f64::NAN, |p| p.eta)))
+        } else {
+            None
+        };
+        if let Some((stress_ratio, eta)) = status {
             let ok = observer.progress(&TestStatus {
                 phase: TestPhase::Shear,
                 steps,
                 planned_steps: planned,
                 eps_a,
-                stress_ratio: f64::NAN,
-                eta: points.last().map_or(f64::NAN, |p| p.eta),
+                stress_ratio,
+                eta,
             });
+            // `done` always comes with an output row.
+            if done {
+                break Ok(true);
+            }
             if stop(ok) {
-                completed = false;
-                break Ok(());
+                break Ok(false);
             }
         }
     };
     summary.shear = cost(steps, run.model.sim.time() - t0, wall, cpu);
-    outcome?;
+    let completed = outcome?;
     if completed {
         run.frame()?;
     }
     Ok(completed)
+}
+
+/// One shear output: closes the energy window, writes the curve row, follows the peak
+/// (and its contact snapshot), checks containment and writes a frame every
+/// [`ROWS_PER_FRAME`] rows.
+fn shear_output(
+    run: &mut Run<'_>,
+    curve: &mut ShearCurve,
+    summary: &mut TestSummary,
+    points: &mut Vec<CurvePoint>,
+    peak: &mut Option<(String, String)>,
+    eps_a: f64,
+) -> Result<CurvePoint, TriaxialError> {
+    run.energy.close(&mut run.model.sim);
+    let point = CurvePoint::from_measurement(&run.measurement(), &curve.reference);
+    curve.writer.push(&point).map_err(io(&curve.path))?;
+    points.push(point);
+    if curve.tracker.observe(point.eta) {
+        *peak = run.snapshot();
+        summary.peak_snapshot_eps_a = Some(point.eps_a);
+    }
+    run.check_escape("shear")?;
+    if points.len().is_multiple_of(ROWS_PER_FRAME) {
+        run.frame()?;
+    }
+    while curve.next_output <= eps_a {
+        curve.next_output += run.prepared.spec.test.output_strain;
+    }
+    Ok(point)
 }
 
 /// Writes the summary, the plots and the peak snapshot.
