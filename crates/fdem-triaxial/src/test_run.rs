@@ -455,6 +455,72 @@ impl Run<'_> {
     }
 }
 
+/// The summary before the first step: the plan (steps, step, bound, contact lengths) and
+/// the test's settings; the results are filled in as the test runs.
+fn initial_summary(run: &Run<'_>) -> TestSummary {
+    let (spec, model, sigma_0) = (&run.prepared.spec, &run.model, run.sigma_0);
+    let test = &spec.test;
+    let velocity = spec.loading_velocity();
+    let dt = model.sim.dt();
+    let height = spec.height;
+    let consolidation_time = test.consolidation_time.unwrap_or(0.1 * height / velocity);
+    let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
+    let shear_steps =
+        (height * (1.0 - (-test.target_strain).exp()) / (velocity * dt)).ceil() as u64;
+    let membrane = &model.membrane_spec;
+    TestSummary {
+        status: "running".into(),
+        failure: None,
+        test: spec.name.clone(),
+        bodies: model.particles,
+        coarse_graining: spec.coarse_graining,
+        exact_scaling: spec.exact_scaling,
+        plan: TestPlan {
+            particles: model.particles,
+            particle_nodes: model.membrane().first_node(),
+            elements: model.elements,
+            membrane_nodes: model.membrane().n_nodes(),
+            dt,
+            dt_bound: model.sim.bound().dt,
+            dt_bound_source: model.sim.bound().source.clone(),
+            contact_margin: model.sim.contact().map_or(f64::NAN, |c| c.model().margin()),
+            depth_limit: model
+                .sim
+                .contact()
+                .map_or(f64::NAN, |c| c.model().depth_limit()),
+            loading_velocity: velocity,
+            inertial_number: spec.inertial_number(),
+            consolidation_steps_max,
+            shear_steps,
+            seconds_per_step: f64::NAN,
+            estimated_seconds_max: f64::NAN,
+            estimated_shear_seconds: f64::NAN,
+        },
+        membrane_divisions: [membrane.divisions_around, membrane.divisions_along],
+        confining_pressure: sigma_0,
+        target_strain: test.target_strain,
+        consolidation: ConsolidationResult {
+            stress_tolerance: test.stress_tolerance,
+            unbalanced_force_limit: test.unbalanced_force,
+            kinetic_ratio_limit: test.kinetic_ratio,
+            volume_rate_limit: test.volume_rate,
+            ..ConsolidationResult::default()
+        },
+        shear: PhaseCost::default(),
+        curve: None,
+        peak_snapshot_eps_a: None,
+        escape_checks: 0,
+        particles_outside: 0,
+        discarded_membrane_hits: 0,
+        discarded_membrane_hits_max: 0,
+        max_contact_depth: 0.0,
+        energy_balance_error: 0.0,
+        energy: EnergyReport::default(),
+        threads: rayon::current_num_threads(),
+        outputs: Vec::new(),
+    }
+}
+
 /// Runs the triaxial test on a prepared specimen (consolidation, then shear) and writes
 /// its outputs into `options.out_dir`. Stops early, with complete outputs and a summary
 /// marked `interrupted`, when `interrupt` is set or the observer asks to.
@@ -494,71 +560,7 @@ pub fn run_test(
         max_depth: 0.0,
         energy: EnergyWindows::default(),
     };
-    let test = &spec.test;
-    let velocity = spec.loading_velocity();
-    let dt = run.model.sim.dt();
-    let height = spec.height;
-    let consolidation_time = test.consolidation_time.unwrap_or(0.1 * height / velocity);
-    let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
-    let shear_steps =
-        (height * (1.0 - (-test.target_strain).exp()) / (velocity * dt)).ceil() as u64;
-    let membrane = &run.model.membrane_spec;
-    let mut summary = TestSummary {
-        status: "running".into(),
-        failure: None,
-        test: spec.name.clone(),
-        bodies: run.model.particles,
-        coarse_graining: spec.coarse_graining,
-        exact_scaling: spec.exact_scaling,
-        plan: TestPlan {
-            particles: run.model.particles,
-            particle_nodes: run.model.membrane().first_node(),
-            elements: run.model.elements,
-            membrane_nodes: run.model.membrane().n_nodes(),
-            dt,
-            dt_bound: run.model.sim.bound().dt,
-            dt_bound_source: run.model.sim.bound().source.clone(),
-            contact_margin: run
-                .model
-                .sim
-                .contact()
-                .map_or(f64::NAN, |c| c.model().margin()),
-            depth_limit: run
-                .model
-                .sim
-                .contact()
-                .map_or(f64::NAN, |c| c.model().depth_limit()),
-            loading_velocity: velocity,
-            inertial_number: spec.inertial_number(),
-            consolidation_steps_max,
-            shear_steps,
-            seconds_per_step: f64::NAN,
-            estimated_seconds_max: f64::NAN,
-            estimated_shear_seconds: f64::NAN,
-        },
-        membrane_divisions: [membrane.divisions_around, membrane.divisions_along],
-        confining_pressure: sigma_0,
-        target_strain: test.target_strain,
-        consolidation: ConsolidationResult {
-            stress_tolerance: test.stress_tolerance,
-            unbalanced_force_limit: test.unbalanced_force,
-            kinetic_ratio_limit: test.kinetic_ratio,
-            volume_rate_limit: test.volume_rate,
-            ..ConsolidationResult::default()
-        },
-        shear: PhaseCost::default(),
-        curve: None,
-        peak_snapshot_eps_a: None,
-        escape_checks: 0,
-        particles_outside: 0,
-        discarded_membrane_hits: 0,
-        discarded_membrane_hits_max: 0,
-        max_contact_depth: 0.0,
-        energy_balance_error: 0.0,
-        energy: EnergyReport::default(),
-        threads: rayon::current_num_threads(),
-        outputs: Vec::new(),
-    };
+    let mut summary = initial_summary(&run);
     let mut points: Vec<CurvePoint> = Vec::new();
     let mut peak: Option<(String, String)> = None;
     let result = stages(
