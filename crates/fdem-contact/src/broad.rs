@@ -183,14 +183,7 @@ enum Layout {
 const DENSE_CELLS_PER_TRIANGLE: usize = 4;
 const DENSE_MIN_CELLS: usize = 1 << 12;
 
-impl BroadPhase {
-    /// The cell number of integer cell coordinates, `None` for an empty cell.
-    #[inline(always)]
-    fn lookup(&self, c: [i64; 3]) -> Option<usize> {
-        lookup(self.layout, &self.table, c)
-    }
-}
-
+/// The cell number of integer cell coordinates, `None` for an empty cell.
 #[inline(always)]
 fn lookup(layout: Layout, table: &CellTable, c: [i64; 3]) -> Option<usize> {
     match layout {
@@ -205,13 +198,38 @@ fn lookup(layout: Layout, table: &CellTable, c: [i64; 3]) -> Option<usize> {
     }
 }
 
-#[inline(always)]
-fn cell_of(x: [f64; 3], origin: [f64; 3], inv: f64) -> [i64; 3] {
-    [
-        ((x[0] - origin[0]) * inv).floor() as i64,
-        ((x[1] - origin[1]) * inv).floor() as i64,
-        ((x[2] - origin[2]) * inv).floor() as i64,
-    ]
+/// Where the grid lies: the corner of cell `[0, 0, 0]` and the inverse cell size.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    origin: [f64; 3],
+    inv: f64,
+}
+
+impl Frame {
+    /// Integer coordinates of the cell that holds `x`.
+    #[inline(always)]
+    fn cell(self, x: [f64; 3]) -> [i64; 3] {
+        let (origin, inv) = (self.origin, self.inv);
+        [
+            ((x[0] - origin[0]) * inv).floor() as i64,
+            ((x[1] - origin[1]) * inv).floor() as i64,
+            ((x[2] - origin[2]) * inv).floor() as i64,
+        ]
+    }
+
+    /// Calls `f` with the coordinates of every cell a box overlaps, `x` fastest.
+    #[inline(always)]
+    fn for_each_cell(self, bx: &[f64; 6], mut f: impl FnMut([i64; 3])) {
+        let lo = self.cell([bx[0], bx[1], bx[2]]);
+        let hi = self.cell([bx[3], bx[4], bx[5]]);
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    f([i, j, k]);
+                }
+            }
+        }
+    }
 }
 
 /// A node in front of a face's plane (or on it) is a candidate only within this many skins
@@ -256,11 +274,29 @@ impl BroadPhase {
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
         let reach = skin + depth_limit;
-        let n_surface = surface.surface_nodes.len();
         self.reference.clear();
         self.reference
             .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
+        let e = self.enlarged_boxes(positions, surface, reach);
+        let (frame, cells) = self.choose_layout(surface.triangles.len());
+        self.bin_triangles(frame, cells, surface.triangles.len());
+        // The reach in front of a face's plane: see FRONT_SKINS.
+        let front = FRONT_SKINS * skin + (e - reach);
+        self.front = front;
+        self.query(frame, positions, surface, two_sided);
+        self.gather(surface);
+        self.built = true;
+        self.builds += 1;
+    }
 
+    /// The triangle boxes at `positions`, enlarged by `reach` plus the tolerance band;
+    /// sets the enlargement and the cell size, and returns the enlargement.
+    fn enlarged_boxes(
+        &mut self,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        reach: f64,
+    ) -> f64 {
         // Raw triangle boxes and the largest extent.
         self.boxes.clear();
         let mut largest = 0.0_f64;
@@ -285,9 +321,16 @@ impl BroadPhase {
                 bx[d + 3] += e;
             }
         }
-        let cell = largest + 2.0 * e;
-        self.cell_size = cell;
-        let inv = 1.0 / cell;
+        self.cell_size = largest + 2.0 * e;
+        e
+    }
+
+    /// The grid's frame over the reference positions and the enlarged boxes, and the cell
+    /// numbering: dense when the occupied region holds at most
+    /// [`DENSE_CELLS_PER_TRIANGLE`] cells per triangle (then also its number of cells),
+    /// else the hash table.
+    fn choose_layout(&mut self, n_triangles: usize) -> (Frame, Option<usize>) {
+        let inv = 1.0 / self.cell_size;
         let mut origin = [f64::INFINITY; 3];
         let mut top = [f64::NEG_INFINITY; 3];
         for x in &self.reference {
@@ -306,9 +349,10 @@ impl BroadPhase {
             origin = [0.0; 3];
             top = [0.0; 3];
         }
-        let extent = cell_of(top, origin, inv);
+        let frame = Frame { origin, inv };
+        let extent = frame.cell(top);
         let dims = extent.map(|e| e.saturating_add(1).max(1));
-        let budget = (DENSE_CELLS_PER_TRIANGLE * surface.triangles.len()).max(DENSE_MIN_CELLS);
+        let budget = (DENSE_CELLS_PER_TRIANGLE * n_triangles).max(DENSE_MIN_CELLS);
         let cells = dims
             .iter()
             .try_fold(1usize, |acc, &n| acc.checked_mul(usize::try_from(n).ok()?));
@@ -316,42 +360,39 @@ impl BroadPhase {
             Some(n) if n <= budget => Layout::Dense { dims },
             _ => Layout::Hash,
         };
+        (frame, cells)
+    }
 
+    /// Lists every triangle in the cells its enlarged box overlaps (compressed rows,
+    /// triangles in increasing order within each cell); `cells` is the dense layout's
+    /// number of cells.
+    fn bin_triangles(&mut self, frame: Frame, cells: Option<usize>, n_triangles: usize) {
         // Count pass: number every overlapped cell, count its triangles.
         self.cell_start.clear();
+        let counts = &mut self.cell_start;
         match self.layout {
             Layout::Dense { .. } => {
-                self.cell_start.resize(cells.unwrap_or(0), 0);
+                counts.resize(cells.unwrap_or(0), 0);
+                let (layout, table) = (self.layout, &self.table);
                 for bx in &self.boxes {
-                    let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
-                    let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
-                    for k in lo[2]..=hi[2] {
-                        for j in lo[1]..=hi[1] {
-                            for i in lo[0]..=hi[0] {
-                                if let Some(c) = lookup(self.layout, &self.table, [i, j, k]) {
-                                    self.cell_start[c] += 1;
-                                }
-                            }
+                    frame.for_each_cell(bx, |c| {
+                        if let Some(c) = lookup(layout, table, c) {
+                            counts[c] += 1;
                         }
-                    }
+                    });
                 }
             }
             Layout::Hash => {
-                self.table.reset(surface.triangles.len() / 2);
+                let table = &mut self.table;
+                table.reset(n_triangles / 2);
                 for bx in &self.boxes {
-                    let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
-                    let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
-                    for k in lo[2]..=hi[2] {
-                        for j in lo[1]..=hi[1] {
-                            for i in lo[0]..=hi[0] {
-                                let c = self.table.insert(pack(i, j, k)) as usize;
-                                if c == self.cell_start.len() {
-                                    self.cell_start.push(0);
-                                }
-                                self.cell_start[c] += 1;
-                            }
+                    frame.for_each_cell(bx, |[i, j, k]| {
+                        let c = table.insert(pack(i, j, k)) as usize;
+                        if c == counts.len() {
+                            counts.push(0);
                         }
-                    }
+                        counts[c] += 1;
+                    });
                 }
             }
         }
@@ -368,23 +409,30 @@ impl BroadPhase {
         self.cell_tris.clear();
         self.cell_tris.resize(running, 0);
         // Fill pass, triangles in increasing order within each cell.
+        let (layout, table) = (self.layout, &self.table);
+        let (cursor, cell_tris) = (&mut self.cell_cursor, &mut self.cell_tris);
         for (t, bx) in self.boxes.iter().enumerate() {
-            let lo = cell_of([bx[0], bx[1], bx[2]], origin, inv);
-            let hi = cell_of([bx[3], bx[4], bx[5]], origin, inv);
-            for k in lo[2]..=hi[2] {
-                for j in lo[1]..=hi[1] {
-                    for i in lo[0]..=hi[0] {
-                        if let Some(c) = self.lookup([i, j, k]) {
-                            let slot = &mut self.cell_cursor[c];
-                            self.cell_tris[*slot] = t as u32;
-                            *slot += 1;
-                        }
-                    }
+            frame.for_each_cell(bx, |c| {
+                if let Some(c) = lookup(layout, table, c) {
+                    let slot = &mut cursor[c];
+                    cell_tris[*slot] = t as u32;
+                    *slot += 1;
                 }
-            }
+            });
         }
+    }
 
-        // Query pass, parallel over fixed chunks of surface nodes.
+    /// Query pass, parallel over fixed chunks of surface nodes: each chunk lists the
+    /// candidate triangles of its nodes (sorted by owner body, then triangle) and their
+    /// counts.
+    fn query(
+        &mut self,
+        frame: Frame,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        two_sided: impl Fn(u32) -> bool + Sync,
+    ) {
+        let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
         self.chunk_tris.resize_with(n_chunks, Vec::new);
         self.chunk_counts.resize_with(n_chunks, Vec::new);
@@ -394,10 +442,9 @@ impl BroadPhase {
         // the node does): the box only finds the cell, the distance decides. A node in
         // front of the face's plane must first cross the face or the sides of the prism
         // behind it; see FRONT_SKINS.
+        let e = self.enlargement;
         let reach2 = e * e;
-        let front = FRONT_SKINS * skin + (e - reach);
-        self.front = front;
-        let front2 = front * front;
+        let front2 = self.front * self.front;
         let boxes = &self.boxes;
         let table = &self.table;
         let layout = self.layout;
@@ -416,7 +463,7 @@ impl BroadPhase {
                     let k = start + offset;
                     let body = surface.node_body[k];
                     let before = tris.len();
-                    let c = cell_of(x, origin, inv);
+                    let c = frame.cell(x);
                     if let Some(cell) = lookup(layout, table, c) {
                         let row = cell_start[cell]..cell_start[cell + 1];
                         for &t in &cell_tris[row] {
@@ -441,6 +488,10 @@ impl BroadPhase {
                     counts.push((tris.len() - before) as u32);
                 }
             });
+    }
+
+    /// Joins the chunks' lists into the candidate rows of every surface node.
+    fn gather(&mut self, surface: &ContactSurface) {
         self.cand_start.clear();
         self.cand.clear();
         let mut total = 0usize;
@@ -457,8 +508,6 @@ impl BroadPhase {
                 body: surface.triangle_body[t as usize],
             }));
         }
-        self.built = true;
-        self.builds += 1;
     }
 
     /// Candidate faces of surface node `k`.

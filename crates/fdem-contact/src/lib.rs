@@ -13,6 +13,15 @@
 //!   B and nodes of B against faces of A, so edges and faces cannot pass through each
 //!   other), and rigid walls ([`Wall`]: planes and cylinders at a prescribed
 //!   constant velocity).
+//! - **Sheets** ([`ContactModel::set_sheet_bodies`], module `sheet`): bodies that are thin
+//!   membranes contacted from one side, with faces oriented towards the particles, such as
+//!   the triaxial test's membrane. There is no volume behind a sheet's face, so when it
+//!   folds over angular particles "behind a face" no longer means "inside": a node that no
+//!   face of a sheet covers is also tested against the sheet's edges and vertices (the
+//!   holes at folded ridges), and a hit deeper than the sheet's fold depth is a fold
+//!   artefact, discarded and counted ([`ContactReport::discarded_sheet_hits`]). The
+//!   closest-face rule that goes with them holds for every body: a face of the same body
+//!   that covers the node from the front, nearer than the hit, means the node is outside.
 //! - **Reactions**: equal and opposite on the face, spread to its three nodes by the
 //!   barycentric weights of the contact point, so linear momentum is conserved to
 //!   round-off. The normal force then also conserves angular momentum (it acts along the
@@ -48,14 +57,27 @@
 //!   enlarged box holds it and that lie within `delta + D` (plus the band) of it. Builds and evaluations are O(surface nodes + triangles).
 //! - Narrow phase: per (node, other body) the contact face is the nearest one (smallest
 //!   depth) among the faces the node is behind with its foot inside (within
-//!   [`BARYCENTRIC_TOLERANCE`]). The hand-written projection is the default kernel; the
-//!   parry3d-f64 one (`ProjectionKernel::Parry`) gives the same contacts and was about 4x
-//!   slower per pair in the `contact` bench.
+//!   [`BARYCENTRIC_TOLERANCE`]), on a sheet the nearest edge when no face covers the
+//!   node; none when a nearer face of that body covers the node from the front (closest
+//!   face), or when a sheet hit is deeper than the fold depth. The hand-written
+//!   projection is the default kernel; the parry3d-f64 one (`ProjectionKernel::Parry`)
+//!   gives the same contacts and was about 4x slower per pair in the `contact` bench.
 //! - Tangential history is keyed by (node, other body or wall), so it survives a switch of
 //!   face on the same body, and is dropped when the contact opens.
 //! - Parallelism (rayon): surface nodes are processed in fixed chunks of 512, each chunk
 //!   writing its own contact records; forces are then added serially in node order. The
 //!   result is bit-for-bit the same for every thread count.
+//!
+//! # Modules
+//! - `model`: [`ContactModel`] (set-up, settings, the three passes of
+//!   [`ContactModel::add_forces`], history export and import) and its report types.
+//! - `broad`: the spatial hash and the Verlet skin (candidate faces per surface node).
+//! - `detect`: the narrow-phase pass, the contacts of each surface node against its
+//!   candidates and the walls, evaluated with the law in fixed chunks.
+//! - `sheet`: what a sheet body is, and the rules contact with it needs (edge test, closest
+//!   face, fold depth) with their invariants.
+//! - [`narrow`]: the node-face projections; `law`, `wall`, `surface`, `params`, `error`:
+//!   the items re-exported below.
 
 //! # Example: two overlapping spheres
 //! ```
@@ -88,11 +110,13 @@
 #![warn(missing_docs)]
 
 mod broad;
+mod detect;
 mod error;
 mod law;
 mod model;
 pub mod narrow;
 mod params;
+mod sheet;
 mod surface;
 mod vec3;
 mod wall;

@@ -6,11 +6,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::broad::{BroadPhase, CHUNK};
-use crate::law::{LawInput, evaluate_law};
+use crate::detect::{ChunkScratch, Ctx};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
+use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
-use crate::wall::wall_distance;
 use crate::{ContactError, ContactParams, ContactSurface, NodeCoefficients, Wall, WallShape};
 
 /// Fraction of the shortest surface edge used by [`ContactModel::suggested_margin`].
@@ -21,11 +21,8 @@ pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
 /// fraction of the depth limit beyond which it reports [`ContactError::PenetrationTooDeep`].
 pub const TUNNELLING_FRACTION: f64 = 0.5;
 
-/// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
-const PLANE_SLACK: f64 = 1e-9;
-
 /// `value` if it is a finite length > 0, else [`ContactError::InvalidLength`].
-fn positive_length(what: &'static str, value: f64) -> Result<f64, ContactError> {
+pub(crate) fn positive_length(what: &'static str, value: f64) -> Result<f64, ContactError> {
     if value.is_finite() && value > 0.0 {
         Ok(value)
     } else {
@@ -45,6 +42,25 @@ fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
     } else {
         [0.0; 4]
     }
+}
+
+/// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
+fn check_step(time: f64, dt: f64) -> Result<(), ContactError> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(ContactError::InvalidStep {
+            quantity: "dt",
+            value: dt,
+            requirement: "the time step must be finite and > 0",
+        });
+    }
+    if !time.is_finite() {
+        return Err(ContactError::InvalidStep {
+            quantity: "time",
+            value: time,
+            requirement: "the time must be finite",
+        });
+    }
+    Ok(())
 }
 
 /// What a surface node touches: a face of another body or a rigid wall.
@@ -79,7 +95,7 @@ impl fmt::Display for Counterpart {
 
 /// History key of a contact: surface-node index in the high bits, counterpart code below.
 #[inline]
-fn history_key(surface_index: usize, counterpart: Counterpart) -> u64 {
+pub(crate) fn history_key(surface_index: usize, counterpart: Counterpart) -> u64 {
     ((surface_index as u64) << 33) | counterpart.code()
 }
 
@@ -87,7 +103,7 @@ fn history_key(surface_index: usize, counterpart: Counterpart) -> u64 {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NodeContact {
     #[serde(skip)]
-    key: u64,
+    pub(crate) key: u64,
     /// Global id of the surface node.
     pub node: usize,
     /// Body of the node.
@@ -116,9 +132,9 @@ pub struct NodeContact {
     /// relative velocity it was evaluated with, for the dissipation bookkeeping of the
     /// next evaluation (see `Ctx::push`).
     #[serde(skip)]
-    damping_force: [f64; 3],
+    pub(crate) damping_force: [f64; 3],
     #[serde(skip)]
-    relative_velocity: [f64; 3],
+    pub(crate) relative_velocity: [f64; 3],
 }
 
 impl NodeContact {
@@ -206,25 +222,6 @@ impl fmt::Display for StableStep {
     }
 }
 
-#[derive(Clone, Copy, Debug, Default)]
-struct Sums {
-    discarded: usize,
-    stored: f64,
-    normal_damping: f64,
-    tangential_damping: f64,
-    friction: f64,
-    max_depth: f64,
-}
-
-#[derive(Clone, Debug, Default)]
-struct ChunkScratch {
-    contacts: Vec<NodeContact>,
-    /// Signed distances of the current node to its candidates' planes.
-    signed: Vec<f64>,
-    sums: Sums,
-    error: Option<ContactError>,
-}
-
 /// Result of the per-step scan of the surface nodes.
 #[derive(Clone, Copy, Debug)]
 struct Scan {
@@ -257,10 +254,14 @@ impl Scan {
     }
 }
 
-/// Body flag: nodes that no face of the body covers are tested against its edges.
-const EDGE_TEST: u8 = 1;
-/// Body flag: the body is a sheet; too-deep hits on it are discarded as fold artefacts.
-const SHEET: u8 = 2;
+/// The per-pair tunnelling checks one evaluation needs (see `ContactModel::guards`).
+#[derive(Clone, Copy, Debug)]
+struct Guards {
+    /// Node against the centroid velocity of each candidate face.
+    check_faces: bool,
+    /// Node against each wall.
+    check_walls: bool,
+}
 
 /// Penalty node-to-face contact between deformable bodies and rigid walls.
 ///
@@ -288,10 +289,8 @@ pub struct ContactModel {
     /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
     planes: Vec<[f64; 4]>,
     report: ContactReport,
-    /// Per body: [`EDGE_TEST`] and [`SHEET`] flags (`set_sheet_bodies`).
-    sheets: Vec<u8>,
-    /// Sheet hits deeper than this are discarded as fold artefacts (m).
-    sheet_fold_depth: f64,
+    /// The sheet bodies and their fold depth (`set_sheet_bodies`).
+    sheets: Sheets,
 }
 
 impl ContactModel {
@@ -385,8 +384,7 @@ impl ContactModel {
             report: ContactReport::default(),
             walls,
             surface,
-            sheets: Vec::new(),
-            sheet_fold_depth: f64::INFINITY,
+            sheets: Sheets::default(),
         })
     }
 
@@ -423,7 +421,8 @@ impl ContactModel {
     /// `fold_depth` (m) is not an error but a fold artefact of a sheet draped over angular
     /// particles: the hit is discarded and counted in
     /// [`ContactReport::discarded_sheet_hits`] (the caller checks containment by other
-    /// means, as the triaxial test does every output).
+    /// means, as the triaxial test does every output). The crate's `sheet` module explains
+    /// these rules and their invariants.
     ///
     /// # Errors
     /// [`ContactError::InvalidLength`] for a `fold_depth` that is not finite and > 0.
@@ -432,19 +431,7 @@ impl ContactModel {
         bodies: &[u32],
         fold_depth: f64,
     ) -> Result<(), ContactError> {
-        self.sheet_fold_depth = positive_length("sheet fold depth", fold_depth)?;
-        self.flag_bodies(bodies, EDGE_TEST | SHEET);
-        Ok(())
-    }
-
-    fn flag_bodies(&mut self, bodies: &[u32], flag: u8) {
-        let n = bodies.iter().map(|&b| b as usize + 1).max().unwrap_or(0);
-        if self.sheets.len() < n {
-            self.sheets.resize(n, 0);
-        }
-        for &b in bodies {
-            self.sheets[b as usize] |= flag;
-        }
+        self.sheets.declare(bodies, fold_depth)
     }
 
     /// Changes the velocity of wall `index` from `time` on, keeping its position at `time`
@@ -755,24 +742,35 @@ impl ContactModel {
         dt: f64,
         forces: &mut [[f64; 3]],
     ) -> Result<ContactReport, ContactError> {
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(ContactError::InvalidStep {
-                quantity: "dt",
-                value: dt,
-                requirement: "the time step must be finite and > 0",
-            });
-        }
-        if !time.is_finite() {
-            return Err(ContactError::InvalidStep {
-                quantity: "time",
-                value: time,
-                requirement: "the time must be finite",
-            });
-        }
+        check_step(time, dt)?;
         self.check_lengths(positions, velocities, forces)?;
 
         // Pass 1: finiteness, Verlet-skin drift, fastest node.
         let scan = self.scan(positions, velocities);
+        let v_max = self.check_scan(&scan, positions, velocities, dt)?;
+        let rebuilt = self.rebuild_if_due(positions, scan.max_drift2);
+        let guards = self.guards(v_max, dt);
+        self.update_geometry(positions, time);
+
+        // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes.
+        self.narrow_phase(positions, velocities, dt, guards)?;
+
+        // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
+        let report = self.apply_forces(forces, rebuilt);
+        self.report = report;
+        Ok(report)
+    }
+
+    /// Refuses a scanned state with a non-finite position or velocity, and a step in which
+    /// two nodes outside each other's candidate lists could meet. Returns the largest
+    /// surface-node speed (m/s).
+    fn check_scan(
+        &self,
+        scan: &Scan,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        dt: f64,
+    ) -> Result<f64, ContactError> {
         if let Some((k, is_velocity)) = scan.bad {
             let node = self.surface.surface_nodes[k];
             return Err(ContactError::NonFinite {
@@ -787,7 +785,6 @@ impl ContactModel {
             });
         }
         let margin = self.margin;
-        let half = TUNNELLING_FRACTION * margin;
         // Tunnelling bound for pairs outside the candidate lists: they are more than
         // `margin` apart, and no two nodes approach faster than twice the largest speed.
         let v_max = scan.max_speed2.sqrt();
@@ -802,15 +799,34 @@ impl ContactModel {
                 dt,
             });
         }
-        let rebuild = self.rebuild_requested || !self.broad.built || scan.max_drift2 > half * half;
+        Ok(v_max)
+    }
+
+    /// Rebuilds the broad phase when asked to, before the first evaluation, or when a
+    /// surface node has drifted farther than half the margin (`max_drift2` is the square
+    /// of the largest drift); returns whether it did.
+    fn rebuild_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> bool {
+        let half = TUNNELLING_FRACTION * self.margin;
+        let rebuild = self.rebuild_requested || !self.broad.built || max_drift2 > half * half;
         if rebuild {
             let sheets = &self.sheets;
-            self.broad
-                .build(positions, &self.surface, margin, self.depth_limit, |body| {
-                    sheets.get(body as usize).is_some_and(|f| f & SHEET != 0)
-                });
+            self.broad.build(
+                positions,
+                &self.surface,
+                self.margin,
+                self.depth_limit,
+                |body| sheets.is_sheet(body),
+            );
             self.rebuild_requested = false;
         }
+        rebuild
+    }
+
+    /// Which per-pair tunnelling checks this step needs, from the largest node speed
+    /// `v_max` (m/s): none of them can fire while the relative motion in one step stays
+    /// below half the margin.
+    fn guards(&self, v_max: f64, dt: f64) -> Guards {
+        let half = TUNNELLING_FRACTION * self.margin;
         let check_faces = 2.0 * v_max * dt > half;
         let wall_speed = self
             .walls
@@ -818,6 +834,14 @@ impl ContactModel {
             .map(|w| norm(w.velocity))
             .fold(0.0, f64::max);
         let check_walls = (v_max + wall_speed) * dt > half;
+        Guards {
+            check_faces,
+            check_walls,
+        }
+    }
+
+    /// The walls' shapes at `time` and every face's plane at `positions`.
+    fn update_geometry(&mut self, positions: &[[f64; 3]], time: f64) {
         self.wall_shapes.clear();
         self.wall_shapes
             .extend(self.walls.iter().map(|w| w.shape_at(time)));
@@ -827,8 +851,17 @@ impl ContactModel {
             .zip(self.surface.triangles.par_iter())
             .with_min_len(CHUNK)
             .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
+    }
 
-        // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes.
+    /// Runs the narrow phase and the law over every chunk of surface nodes into the
+    /// chunks' scratch; the first error in node order, if any.
+    fn narrow_phase(
+        &mut self,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        dt: f64,
+        guards: Guards,
+    ) -> Result<(), ContactError> {
         let ctx = Ctx {
             surface: &self.surface,
             broad: &self.broad,
@@ -841,24 +874,27 @@ impl ContactModel {
             positions,
             velocities,
             dt,
-            margin,
+            margin: self.margin,
             depth_limit: self.depth_limit,
-            check_faces,
-            check_walls,
+            check_faces: guards.check_faces,
+            check_walls: guards.check_walls,
             sheets: &self.sheets,
-            sheet_fold_depth: self.sheet_fold_depth,
         };
         self.chunks
             .par_iter_mut()
             .enumerate()
             .for_each(|(chunk, scratch)| ctx.run_chunk(chunk, scratch));
-        if let Some(err) = self.chunks.iter_mut().find_map(|c| c.error.take()) {
-            return Err(err);
+        match self.chunks.iter_mut().find_map(|c| c.error.take()) {
+            Some(err) => Err(err),
+            None => Ok(()),
         }
+    }
 
-        // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
+    /// Adds the chunks' contact forces and the reactions on faces and walls to `forces`,
+    /// keeps the contacts as the next evaluation's history, and sums the report.
+    fn apply_forces(&mut self, forces: &mut [[f64; 3]], rebuilt: bool) -> ContactReport {
         let mut report = ContactReport {
-            rebuilt: rebuild,
+            rebuilt,
             candidate_pairs: self.broad.cand.len(),
             ..ContactReport::default()
         };
@@ -906,337 +942,12 @@ impl ContactModel {
             .zip(&self.wall_forces)
             .map(|(w, f)| -(w.velocity[0] * f[0] + w.velocity[1] * f[1] + w.velocity[2] * f[2]))
             .sum();
-        self.report = report;
-        Ok(report)
+        report
     }
 
     /// Lumped mass of surface node `k` (kg).
     pub fn surface_node_mass(&self, k: usize) -> Option<f64> {
         self.masses.get(k).copied()
-    }
-}
-
-/// Read-only context of one narrow-phase pass.
-struct Ctx<'a> {
-    surface: &'a ContactSurface,
-    broad: &'a BroadPhase,
-    coefficients: &'a [NodeCoefficients],
-    walls: &'a [Wall],
-    wall_shapes: &'a [WallShape],
-    planes: &'a [[f64; 4]],
-    previous: &'a [NodeContact],
-    kernel: ProjectionKernel,
-    positions: &'a [[f64; 3]],
-    velocities: &'a [[f64; 3]],
-    dt: f64,
-    margin: f64,
-    depth_limit: f64,
-    check_faces: bool,
-    check_walls: bool,
-    sheets: &'a [u8],
-    sheet_fold_depth: f64,
-}
-
-impl Ctx<'_> {
-    /// The contact `key` of the previous evaluation, if there was one. Keys arrive in
-    /// increasing order within a chunk, and `previous` is sorted by key, so a cursor that
-    /// only moves forward finds them (a merge, not a search per contact).
-    #[inline]
-    fn previous(&self, key: u64, cursor: &mut usize) -> Option<&NodeContact> {
-        let previous = self.previous;
-        while *cursor < previous.len() && previous[*cursor].key < key {
-            *cursor += 1;
-        }
-        previous.get(*cursor).filter(|c| c.key == key)
-    }
-
-    fn tunnelling(&self, k: usize, relative_to: Counterpart, displacement: f64) -> ContactError {
-        ContactError::Tunnelling {
-            node: self.surface.surface_nodes[k],
-            body: self.surface.node_body[k],
-            relative_to: relative_to.to_string(),
-            displacement,
-            margin: self.margin,
-            dt: self.dt,
-        }
-    }
-
-    fn run_chunk(&self, chunk: usize, scratch: &mut ChunkScratch) {
-        scratch.contacts.clear();
-        scratch.sums = Sums::default();
-        scratch.error = None;
-        let n = self.surface.surface_nodes.len();
-        let start = chunk * CHUNK;
-        let first_key = history_key(start, Counterpart::Body(0));
-        let mut cursor = self.previous.partition_point(|c| c.key < first_key);
-        for k in start..(start + CHUNK).min(n) {
-            if let Err(e) = self.node(k, scratch, &mut cursor) {
-                scratch.error = Some(e);
-                return;
-            }
-        }
-    }
-
-    /// All contacts of surface node `k`: the best face per other body, then the walls.
-    fn node(
-        &self,
-        k: usize,
-        scratch: &mut ChunkScratch,
-        cursor: &mut usize,
-    ) -> Result<(), ContactError> {
-        let s = self.surface;
-        let node = s.surface_nodes[k];
-        let body = s.node_body[k];
-        let x = self.positions[node];
-        let v = self.velocities[node];
-        let depth_limit = self.depth_limit;
-        let half = TUNNELLING_FRACTION * self.margin;
-        let cands = self.broad.candidates(k);
-        // Signed distances to the candidates' planes (positive in front): a cheap
-        // pre-filter. Every test below is exact on its own; the filter only skips faces
-        // that are beyond its reach by more than `slack`, far above the round-off of
-        // `n . x - n . a` (1e-16 of the coordinates), so the contacts are unchanged.
-        let slack = PLANE_SLACK * depth_limit;
-        // Behind the plane (or on it) by at most the depth limit, up to the slack.
-        let within_reach = |s: f64| s <= slack && s >= -depth_limit - slack;
-        let signed = &mut scratch.signed;
-        signed.clear();
-        signed.extend(cands.iter().map(|c| {
-            let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
-            nx * x[0] + ny * x[1] + nz * x[2] - offset
-        }));
-        let signed = std::mem::take(&mut scratch.signed);
-        let mut i = 0;
-        while i < cands.len() {
-            let other = cands[i].body;
-            let mut best: Option<(usize, [usize; 3], crate::FaceHit)> = None;
-            let group = i;
-            while i < cands.len() && cands[i].body == other {
-                let c = cands[i];
-                i += 1;
-                let tri = c.nodes.map(|j| j as usize);
-                if self.check_faces {
-                    let vc = scale(
-                        add(
-                            add(self.velocities[tri[0]], self.velocities[tri[1]]),
-                            self.velocities[tri[2]],
-                        ),
-                        1.0 / 3.0,
-                    );
-                    let d = norm(sub(v, vc)) * self.dt;
-                    if d > half {
-                        return Err(self.tunnelling(k, Counterpart::Body(other), d));
-                    }
-                }
-                if !within_reach(signed[i - 1]) {
-                    continue;
-                }
-                let face = tri.map(|j| self.positions[j]);
-                if let Some(hit) = self.kernel.project(x, face, depth_limit)
-                    && best.is_none_or(|(_, _, b)| hit.depth < b.depth)
-                {
-                    best = Some((c.triangle as usize, tri, hit));
-                }
-            }
-            // A sheet that no face covers the node with: its edges and vertices.
-            // It counts only where the node is behind the planes of all the sheet's nearby
-            // faces (a ridge folded over it), not in front of any of them within the
-            // edge distance. Nearby: the node's candidates, the faces within skin plus
-            // depth limit of it at the last broad-phase build.
-            let flags = self.sheets.get(other as usize).copied().unwrap_or(0);
-            let is_sheet = flags & SHEET != 0;
-            if best.is_none() && flags & EDGE_TEST != 0 {
-                let mut edge: Option<(usize, [usize; 3], crate::FaceHit)> = None;
-                for (c, &s) in cands[group..i].iter().zip(&signed[group..i]) {
-                    // `project_to_edge` needs the node behind the plane within the limit.
-                    if !within_reach(s) {
-                        continue;
-                    }
-                    let tri = c.nodes.map(|j| j as usize);
-                    let face = tri.map(|j| self.positions[j]);
-                    if let Some(hit) = crate::narrow::project_to_edge(x, face, depth_limit)
-                        && edge.is_none_or(|(_, _, b)| hit.depth < b.depth)
-                    {
-                        edge = Some((c.triangle as usize, tri, hit));
-                    }
-                }
-                best = edge.filter(|(_, _, hit)| {
-                    !cands[group..i]
-                        .iter()
-                        .zip(&signed[group..i])
-                        .any(|(c, &s)| {
-                            if s < -slack || s > hit.depth + slack {
-                                return false;
-                            }
-                            let [a, b, cc] = c.nodes.map(|j| self.positions[j as usize]);
-                            let n = crate::vec3::cross(sub(b, a), sub(cc, a));
-                            let len = norm(n);
-                            len > 0.0 && {
-                                let s = crate::vec3::dot(sub(x, a), n) / len;
-                                (0.0..=hit.depth).contains(&s)
-                            }
-                        })
-                });
-            }
-            // Closest face wins: a face of the same body that covers the node from the
-            // front, nearer than the deepest-behind hit, means the node is outside there.
-            let best = best.filter(|(_, _, hit)| {
-                !cands[group..i]
-                    .iter()
-                    .zip(&signed[group..i])
-                    .any(|(c, &s)| {
-                        s >= -slack && s <= hit.depth + slack && {
-                            let face = c.nodes.map(|j| self.positions[j as usize]);
-                            crate::narrow::front_distance(x, face, hit.depth).is_some()
-                        }
-                    })
-            });
-            // A sheet hit deeper than the fold depth is a fold artefact (the sheet moves
-            // slowly and has the edge test): discard it, count it.
-            let best = match best {
-                Some((_, _, hit)) if hit.depth > self.sheet_fold_depth && is_sheet => {
-                    scratch.sums.discarded += 1;
-                    None
-                }
-                other => other,
-            };
-            if let Some((t, tri, hit)) = best {
-                let counterpart = Counterpart::Body(other);
-                if hit.depth > TUNNELLING_FRACTION * depth_limit {
-                    return Err(ContactError::PenetrationTooDeep {
-                        node,
-                        body,
-                        counterpart,
-                        depth: hit.depth,
-                        depth_limit,
-                    });
-                }
-                let w = hit.weights;
-                let mut v_face = [0.0; 3];
-                let mut point = [0.0; 3];
-                for (j, wj) in tri.iter().zip(w) {
-                    v_face = add(v_face, scale(self.velocities[*j], wj));
-                    point = add(point, scale(self.positions[*j], wj));
-                }
-                self.push(
-                    scratch,
-                    cursor,
-                    k,
-                    counterpart,
-                    Some(t),
-                    w,
-                    point,
-                    hit.depth,
-                    hit.normal,
-                    sub(v, v_face),
-                );
-            }
-        }
-        scratch.signed = signed;
-        for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
-            let Some((distance, normal)) = wall_distance(shape, x) else {
-                continue;
-            };
-            let counterpart = Counterpart::Wall(w as u32);
-            let v_rel = sub(v, wall.velocity);
-            if self.check_walls {
-                let d = norm(v_rel) * self.dt;
-                if d > half && distance < self.margin + d {
-                    return Err(self.tunnelling(k, counterpart, d));
-                }
-            }
-            if distance < 0.0 {
-                let depth = -distance;
-                let point = add(x, scale(normal, depth));
-                self.push(
-                    scratch,
-                    cursor,
-                    k,
-                    counterpart,
-                    None,
-                    [0.0; 3],
-                    point,
-                    depth,
-                    normal,
-                    v_rel,
-                );
-            }
-        }
-        Ok(())
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn push(
-        &self,
-        scratch: &mut ChunkScratch,
-        cursor: &mut usize,
-        k: usize,
-        counterpart: Counterpart,
-        face: Option<usize>,
-        weights: [f64; 3],
-        contact_point: [f64; 3],
-        depth: f64,
-        normal: [f64; 3],
-        relative_velocity: [f64; 3],
-    ) {
-        let key = history_key(k, counterpart);
-        let previous = self.previous(key, cursor);
-        let mut history = previous.map_or([0.0; 3], |c| c.tangential_displacement);
-        let out = evaluate_law(
-            &LawInput {
-                normal,
-                depth,
-                relative_velocity,
-                dt: self.dt,
-                coefficients: self.coefficients[k],
-            },
-            &mut history,
-        );
-        // The dashpot power is evaluated at the half-step velocity v(n+1/2), but velocity
-        // Verlet applies this force over the kicks from v(n+1/2) to v(n+3/2): its true
-        // work is `F . (v(n+1/2) + v(n+3/2)) / 2 dt`. The previous force's missing share,
-        // `-F_nc(n) . (v(n+3/2) - v(n+1/2)) / 2`, is booked now that v(n+3/2) is known
-        // (the dashpots of light nodes have `c dt / m` of order 0.1-1, where the
-        // difference is tens of percent of the dissipation). `F_nc` is the non-elastic
-        // part of the force: the normal dashpot and the tangential force beyond the spring.
-        let damping_force = add(
-            scale(
-                normal,
-                out.normal_magnitude - self.coefficients[k].normal_stiffness * depth,
-            ),
-            add(
-                out.tangential_force,
-                scale(history, self.coefficients[k].tangential_stiffness),
-            ),
-        );
-        let correction = previous.map_or(0.0, |c| {
-            -0.5 * crate::vec3::dot(c.damping_force, sub(relative_velocity, c.relative_velocity))
-        });
-        let sums = &mut scratch.sums;
-        sums.stored += out.stored_energy;
-        sums.normal_damping += out.normal_damping_power + correction;
-        sums.tangential_damping += out.tangential_damping_power;
-        sums.friction += out.friction_dissipation;
-        sums.max_depth = sums.max_depth.max(depth);
-        let node = self.surface.surface_nodes[k];
-        scratch.contacts.push(NodeContact {
-            key,
-            node,
-            body: self.surface.node_body[k],
-            counterpart,
-            face,
-            weights,
-            position: self.positions[node],
-            contact_point,
-            depth,
-            normal_force: out.normal_force,
-            tangential_force: out.tangential_force,
-            tangential_displacement: history,
-            sliding: out.sliding,
-            damping_force,
-            relative_velocity,
-        });
     }
 }
 

@@ -342,7 +342,50 @@ impl Builder {
 pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering, MicroError> {
     params.validate()?;
     let boundary: BTreeSet<u32> = params.boundary_bodies.iter().copied().collect();
+    check_rows(snapshot)?;
 
+    // 1. Node entries sorted by body, counterpart, node; rows of one node summed; then
+    //    the entries without a normal force (above the threshold) left out.
+    let (entries, ignored_rows) = node_entries(snapshot, params.min_normal_force);
+    let particles_seen = particles_seen(&entries, &boundary);
+    let groups = groups(&entries);
+
+    // 2. Node spacing: nearest-neighbour distances inside each group, per body and overall.
+    let (samples, spacing) = spacing_samples(&entries, &groups);
+    let eps = EpsTable::new(params, spacing, &samples);
+
+    // 3. DBSCAN per group.
+    let (clusters, noise_nodes, eps_range) = cluster_groups(&entries, &groups, &eps, params);
+
+    // 4. Contacts: walls, recorded body counterparts, unknown counterparts.
+    let mut contacts: Vec<Contact> = Vec::new();
+    wall_contacts(&clusters, &mut contacts);
+    recorded_pair_contacts(&clusters, params, &boundary, &mut contacts);
+    let unpaired_clusters = unknown_contacts(&clusters, params, &boundary, &mut contacts);
+    contacts.sort_by(|a, b| {
+        (a.kind, a.body, a.other)
+            .cmp(&(b.kind, b.body, b.other))
+            .then(a.position[0].total_cmp(&b.position[0]))
+            .then(a.position[1].total_cmp(&b.position[1]))
+            .then(a.position[2].total_cmp(&b.position[2]))
+    });
+    Ok(Clustering {
+        time: snapshot.time,
+        contacts,
+        rows: snapshot.rows.len(),
+        ignored_rows,
+        nodes: entries.len(),
+        noise_nodes,
+        clusters: clusters.len(),
+        unpaired_clusters,
+        spacing,
+        eps_range,
+        particles_seen,
+    })
+}
+
+/// Refuses a snapshot with a non-finite position or force component.
+fn check_rows(snapshot: &Snapshot) -> Result<(), MicroError> {
     for (i, r) in snapshot.rows.iter().enumerate() {
         let finite = r
             .position
@@ -359,9 +402,13 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
             });
         }
     }
+    Ok(())
+}
 
-    // 1. Node entries sorted by body, counterpart, node; rows of one node summed; then
-    //    the entries without a normal force (above the threshold) left out.
+/// The node entries sorted by body, counterpart and node, the rows of one node summed,
+/// those whose normal force is at most `min_normal_force` left out; and the number of rows
+/// left out.
+fn node_entries(snapshot: &Snapshot, min_normal_force: f64) -> (Vec<Entry>, usize) {
     let mut entries: Vec<Entry> = snapshot
         .rows
         .iter()
@@ -387,28 +434,34 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
     });
     let mut ignored_rows = 0;
     entries.retain(|e| {
-        let keep = norm(e.normal) > params.min_normal_force;
+        let keep = norm(e.normal) > min_normal_force;
         if !keep {
             ignored_rows += e.rows;
         }
         keep
     });
-    let particles_seen = {
-        let mut bodies: Vec<u32> = entries
-            .iter()
-            .map(|e| e.body)
-            .chain(entries.iter().filter_map(|e| match e.key {
-                Counterpart::Body(b) => Some(b),
-                _ => None,
-            }))
-            .filter(|b| !boundary.contains(b))
-            .collect();
-        bodies.sort_unstable();
-        bodies.dedup();
-        bodies.len()
-    };
+    (entries, ignored_rows)
+}
 
-    // Groups: runs of equal (body, counterpart).
+/// Distinct particles (bodies not in `boundary`) among the entries' bodies and recorded
+/// body counterparts.
+fn particles_seen(entries: &[Entry], boundary: &BTreeSet<u32>) -> usize {
+    let mut bodies: Vec<u32> = entries
+        .iter()
+        .map(|e| e.body)
+        .chain(entries.iter().filter_map(|e| match e.key {
+            Counterpart::Body(b) => Some(b),
+            _ => None,
+        }))
+        .filter(|b| !boundary.contains(b))
+        .collect();
+    bodies.sort_unstable();
+    bodies.dedup();
+    bodies.len()
+}
+
+/// Groups of the sorted entries: runs of equal (body, counterpart).
+fn groups(entries: &[Entry]) -> Vec<std::ops::Range<usize>> {
     let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
     let mut start = 0;
     for i in 1..=entries.len() {
@@ -421,11 +474,18 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
             start = i;
         }
     }
+    groups
+}
 
-    // 2. Node spacing: nearest-neighbour distances inside each group, per body and overall.
+/// The non-zero nearest-neighbour distances inside each group with their body (in body
+/// order, as the groups are), and their median over the snapshot.
+fn spacing_samples(
+    entries: &[Entry],
+    groups: &[std::ops::Range<usize>],
+) -> (Vec<(u32, f64)>, Option<f64>) {
     let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut samples: Vec<(u32, f64)> = Vec::new();
-    for g in &groups {
+    for g in groups {
         positions.clear();
         positions.extend(entries[g.clone()].iter().map(|e| e.position));
         let body = entries[g.start].body;
@@ -438,45 +498,75 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
     }
     let mut all: Vec<f64> = samples.iter().map(|s| s.1).collect();
     let spacing = median(&mut all);
-    // Body -> eps, in body order (samples are already sorted by body).
-    let global_eps = params
-        .eps
-        .unwrap_or_else(|| spacing.map_or(f64::INFINITY, |s| params.eps_factor * s));
-    let mut body_eps: Vec<(u32, f64)> = Vec::new();
-    if let (None, Some(global)) = (params.eps, spacing) {
-        let (lo, hi) = (global / LOCAL_SPACING_RANGE, global * LOCAL_SPACING_RANGE);
-        let mut i = 0;
-        let mut local = Vec::new();
-        while i < samples.len() {
-            let body = samples[i].0;
-            local.clear();
-            while i < samples.len() && samples[i].0 == body {
-                // Longer distances join separate patches, not neighbouring nodes.
-                if samples[i].1 <= hi {
-                    local.push(samples[i].1);
+    (samples, spacing)
+}
+
+/// The DBSCAN radius of each body: from its local spacing where it has enough samples of
+/// its own, else the global one.
+struct EpsTable {
+    /// `eps` if given, else `eps_factor` times the snapshot's spacing (infinite without).
+    global: f64,
+    /// Body -> eps, in body order.
+    per_body: Vec<(u32, f64)>,
+}
+
+impl EpsTable {
+    /// The radii for `params`, the snapshot's `spacing` and its `samples` (sorted by body).
+    fn new(params: &ClusterParams, spacing: Option<f64>, samples: &[(u32, f64)]) -> EpsTable {
+        let global_eps = params
+            .eps
+            .unwrap_or_else(|| spacing.map_or(f64::INFINITY, |s| params.eps_factor * s));
+        let mut body_eps: Vec<(u32, f64)> = Vec::new();
+        if let (None, Some(global)) = (params.eps, spacing) {
+            let (lo, hi) = (global / LOCAL_SPACING_RANGE, global * LOCAL_SPACING_RANGE);
+            let mut i = 0;
+            let mut local = Vec::new();
+            while i < samples.len() {
+                let body = samples[i].0;
+                local.clear();
+                while i < samples.len() && samples[i].0 == body {
+                    // Longer distances join separate patches, not neighbouring nodes.
+                    if samples[i].1 <= hi {
+                        local.push(samples[i].1);
+                    }
+                    i += 1;
                 }
-                i += 1;
-            }
-            if local.len() >= MIN_LOCAL_SAMPLES
-                && let Some(m) = median(&mut local)
-            {
-                body_eps.push((body, params.eps_factor * m.clamp(lo, hi)));
+                if local.len() >= MIN_LOCAL_SAMPLES
+                    && let Some(m) = median(&mut local)
+                {
+                    body_eps.push((body, params.eps_factor * m.clamp(lo, hi)));
+                }
             }
         }
+        EpsTable {
+            global: global_eps,
+            per_body: body_eps,
+        }
     }
-    let eps_of = |body: u32| -> f64 {
-        body_eps
-            .binary_search_by_key(&body, |e| e.0)
-            .map_or(global_eps, |i| body_eps[i].1)
-    };
 
-    // 3. DBSCAN per group.
+    /// The radius of `body` (m).
+    fn of(&self, body: u32) -> f64 {
+        self.per_body
+            .binary_search_by_key(&body, |e| e.0)
+            .map_or(self.global, |i| self.per_body[i].1)
+    }
+}
+
+/// DBSCAN over each group: the clusters in group order, the nodes left as noise, and the
+/// smallest and largest eps used.
+fn cluster_groups(
+    entries: &[Entry],
+    groups: &[std::ops::Range<usize>],
+    eps: &EpsTable,
+    params: &ClusterParams,
+) -> (Vec<Cluster>, usize, Option<[f64; 2]>) {
+    let mut positions: Vec<[f64; 3]> = Vec::new();
     let mut clusters: Vec<Cluster> = Vec::new();
     let mut noise_nodes = 0;
     let mut eps_range: Option<[f64; 2]> = None;
-    for g in &groups {
+    for g in groups {
         let (body, key) = (entries[g.start].body, entries[g.start].key);
-        let eps = eps_of(body);
+        let eps = eps.of(body);
         eps_range = Some(eps_range.map_or([eps, eps], |[lo, hi]| [lo.min(eps), hi.max(eps)]));
         positions.clear();
         positions.extend(entries[g.clone()].iter().map(|e| e.position));
@@ -512,17 +602,20 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
             c.nodes += 1;
         }
     }
+    (clusters, noise_nodes, eps_range)
+}
 
-    // 4. Contacts.
-    let kind_of = |a: u32, b: Option<u32>| {
-        if boundary.contains(&a) || b.is_some_and(|b| boundary.contains(&b)) {
-            ContactKind::Boundary
-        } else {
-            ContactKind::Particle
-        }
-    };
-    let mut contacts: Vec<Contact> = Vec::new();
-    // 4a. Walls.
+/// Particle contact, or boundary contact when body `a` or `b` is a boundary.
+fn kind_of(boundary: &BTreeSet<u32>, a: u32, b: Option<u32>) -> ContactKind {
+    if boundary.contains(&a) || b.is_some_and(|b| boundary.contains(&b)) {
+        ContactKind::Boundary
+    } else {
+        ContactKind::Particle
+    }
+}
+
+/// 4a. Each cluster against a wall is a boundary contact with that wall.
+fn wall_contacts(clusters: &[Cluster], contacts: &mut Vec<Contact>) {
     for c in clusters
         .iter()
         .filter(|c| matches!(c.key, Counterpart::Wall(_)))
@@ -531,7 +624,16 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
         b.add(c, 1.0, 1.0);
         contacts.push(b.finish());
     }
-    // 4b. Recorded body counterparts: merge the two sides of each body pair.
+}
+
+/// 4b. Recorded body counterparts: the clusters of each body pair, on both sides, merged
+/// (transitively) where their positions are within pair_distance_factor x eps.
+fn recorded_pair_contacts(
+    clusters: &[Cluster],
+    params: &ClusterParams,
+    boundary: &BTreeSet<u32>,
+    contacts: &mut Vec<Contact>,
+) {
     let mut by_pair: Vec<(u32, u32, usize)> = clusters
         .iter()
         .enumerate()
@@ -567,7 +669,7 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
         roots.sort_unstable();
         let mut r = 0;
         while r < roots.len() {
-            let mut b = Builder::new(kind_of(lo, Some(hi)), lo, Counterpart::Body(hi));
+            let mut b = Builder::new(kind_of(boundary, lo, Some(hi)), lo, Counterpart::Body(hi));
             let root = roots[r].0;
             while r < roots.len() && roots[r].0 == root {
                 let c = &clusters[members[roots[r].1]];
@@ -578,11 +680,21 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
         }
         start = end;
     }
-    // 4c. Unknown counterparts: geometric pairing of action and reaction.
+}
+
+/// 4c. Unknown counterparts: geometric pairing of action and reaction ([`pair_unknown`]);
+/// an unpaired cluster is a boundary contact with an unknown counterpart. Returns the
+/// number of unpaired clusters.
+fn unknown_contacts(
+    clusters: &[Cluster],
+    params: &ClusterParams,
+    boundary: &BTreeSet<u32>,
+    contacts: &mut Vec<Contact>,
+) -> usize {
     let unknown: Vec<usize> = (0..clusters.len())
         .filter(|&i| clusters[i].key == Counterpart::Unknown)
         .collect();
-    let partner = pair_unknown(&clusters, &unknown, params);
+    let partner = pair_unknown(clusters, &unknown, params);
     let mut unpaired_clusters = 0;
     for (k, &i) in unknown.iter().enumerate() {
         let c = &clusters[i];
@@ -593,7 +705,7 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
                     continue; // the pair is built once, from its lower body
                 }
                 let mut b = Builder::new(
-                    kind_of(c.body, Some(o.body)),
+                    kind_of(boundary, c.body, Some(o.body)),
                     c.body,
                     Counterpart::Body(o.body),
                 );
@@ -610,26 +722,7 @@ pub fn cluster(snapshot: &Snapshot, params: &ClusterParams) -> Result<Clustering
             }
         }
     }
-    contacts.sort_by(|a, b| {
-        (a.kind, a.body, a.other)
-            .cmp(&(b.kind, b.body, b.other))
-            .then(a.position[0].total_cmp(&b.position[0]))
-            .then(a.position[1].total_cmp(&b.position[1]))
-            .then(a.position[2].total_cmp(&b.position[2]))
-    });
-    Ok(Clustering {
-        time: snapshot.time,
-        contacts,
-        rows: snapshot.rows.len(),
-        ignored_rows,
-        nodes: entries.len(),
-        noise_nodes,
-        clusters: clusters.len(),
-        unpaired_clusters,
-        spacing,
-        eps_range,
-        particles_seen,
-    })
+    unpaired_clusters
 }
 
 /// Greedy best-first matching of unknown-counterpart clusters on different bodies

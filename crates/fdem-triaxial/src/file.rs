@@ -165,32 +165,84 @@ impl PreparedSpecimen {
     /// definition or counts do not hold.
     pub fn load(path: &Path) -> Result<PreparedSpecimen, TriaxialError> {
         let bytes = std::fs::read(path).map_err(|e| TriaxialError::io("reading", path, e))?;
-        let bad = |m: String| TriaxialError::file(path, m);
-        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
-            return Err(bad(
-                "not an fdem specimen file (it does not start with FDEMSPEC); write one with \
-                 `fdem specimen --prepare --out FILE`"
-                    .into(),
-            ));
-        }
-        if bytes.len() < PREAMBLE {
-            return Err(bad(format!(
-                "truncated: {} bytes, less than the {PREAMBLE}-byte preamble",
-                bytes.len()
-            )));
-        }
-        let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
-        if version != FORMAT_VERSION {
-            return Err(bad(format!(
-                "specimen format version {version}, but this fdem ({}) reads version \
-                 {FORMAT_VERSION} only; prepare the specimen again with this version",
-                env!("CARGO_PKG_VERSION")
-            )));
-        }
+        check_preamble(&bytes, path)?;
+        let layout = Layout::read(&bytes, path)?;
+        check_checksum(&bytes, path)?;
+        let header = read_header(&bytes[PREAMBLE..layout.body_start], path)?;
         let mut r = Reader {
             bytes: &bytes,
-            at: 12,
+            at: layout.data_start,
         };
+        let (dt, particles, state) = read_body(&mut r, &layout, path)?;
+
+        // The file must describe the specimen its definition implies.
+        let counts = header.specimen.counts()?;
+        let (n_particles, n_nodes) = (layout.particles, layout.nodes);
+        if counts.particles != n_particles || counts.nodes != n_nodes {
+            return Err(TriaxialError::file(
+                path,
+                format!(
+                    "holds {n_particles} particles and {n_nodes} nodes, but its definition \
+                     implies {} and {}",
+                    counts.particles, counts.nodes
+                ),
+            ));
+        }
+        Ok(PreparedSpecimen {
+            spec: header.specimen,
+            particles,
+            dt,
+            state,
+            report: header.report,
+        })
+    }
+}
+
+/// Refuses a file that does not start with [`MAGIC`], is shorter than the preamble, or is
+/// of another format version.
+fn check_preamble(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
+    let bad = |m: String| TriaxialError::file(path, m);
+    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        return Err(bad(
+            "not an fdem specimen file (it does not start with FDEMSPEC); write one with \
+             `fdem specimen --prepare --out FILE`"
+                .into(),
+        ));
+    }
+    if bytes.len() < PREAMBLE {
+        return Err(bad(format!(
+            "truncated: {} bytes, less than the {PREAMBLE}-byte preamble",
+            bytes.len()
+        )));
+    }
+    let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+    if version != FORMAT_VERSION {
+        return Err(bad(format!(
+            "specimen format version {version}, but this fdem ({}) reads version \
+             {FORMAT_VERSION} only; prepare the specimen again with this version",
+            env!("CARGO_PKG_VERSION")
+        )));
+    }
+    Ok(())
+}
+
+/// Where the parts of a specimen file lie: the end of the header and the stored counts.
+struct Layout {
+    /// Offset of the counts, just after the header text.
+    body_start: usize,
+    /// Offset of what follows the counts (dt, time, step, ...).
+    data_start: usize,
+    particles: u64,
+    nodes: u64,
+    history: u64,
+}
+
+impl Layout {
+    /// Reads the header length and the counts, and checks that the file's size is the one
+    /// they imply.
+    fn read(bytes: &[u8], path: &Path) -> Result<Layout, TriaxialError> {
+        let bad = |m: String| TriaxialError::file(path, m);
+        let mut r = Reader { bytes, at: 12 };
         let truncated = |needed: u64| {
             bad(format!(
                 "truncated: {} bytes, but the layout needs at least {needed}; the file is \
@@ -204,7 +256,6 @@ impl PreparedSpecimen {
         if (bytes.len() as u64) < fixed_end {
             return Err(truncated(fixed_end));
         }
-        let header_bytes = &bytes[PREAMBLE..body_start as usize];
         r.at = body_start as usize;
         let (n_particles, n_nodes, n_history) = (
             r.u64().unwrap_or(0),
@@ -231,95 +282,117 @@ impl PreparedSpecimen {
                 bytes.len() as u64 - expected
             )));
         }
-        let end = bytes.len() - 8;
-        let mut hash = Fnv::new();
-        hash.update(&bytes[..end]);
-        let mut stored = [0u8; 8];
-        stored.copy_from_slice(&bytes[end..]);
-        if hash.0 != u64::from_le_bytes(stored) {
-            return Err(bad(
-                "corrupted: the checksum does not match the contents; prepare the specimen again \
-                 or restore the file from a good copy"
-                    .into(),
-            ));
-        }
-        let text = std::str::from_utf8(header_bytes)
-            .map_err(|_| bad("corrupted: the header is not UTF-8".into()))?;
-        let header: Header = toml::from_str(text)
-            .map_err(|e| bad(format!("the header does not parse: {}", e.message())))?;
-        if header.format != "fdem-specimen" || header.format_version != FORMAT_VERSION {
-            return Err(bad(format!(
-                "the header says format `{}` version {}, not fdem-specimen version {FORMAT_VERSION}",
-                header.format, header.format_version
-            )));
-        }
-        let origin = path.display().to_string();
-        header.specimen.validate(&origin)?;
-
-        let dt = r.f64().unwrap_or(f64::NAN);
-        let time = r.f64().unwrap_or(f64::NAN);
-        let step = r.u64().unwrap_or(0);
-        let mut particles = Vec::with_capacity(n_particles as usize);
-        for _ in 0..n_particles {
-            let v: [f64; 8] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
-            particles.push(PlacedParticle {
-                diameter: v[0],
-                center: [v[1], v[2], v[3]],
-                orientation: [v[4], v[5], v[6], v[7]],
-                class: 0,
-            });
-        }
-        for p in &mut particles {
-            p.class = r.u64().unwrap_or(0) as usize;
-        }
-        let mut vectors = |n: u64| -> Vec<[f64; 3]> {
-            (0..n)
-                .map(|_| std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN)))
-                .collect()
-        };
-        let positions = vectors(n_nodes);
-        let velocities = vectors(n_nodes);
-        let mut history = Vec::with_capacity(n_history as usize);
-        for i in 0..n_history {
-            let node = r.u64().unwrap_or(0);
-            let code = r.u64().unwrap_or(0);
-            let d: [f64; 3] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
-            let index = u32::try_from(code & (WALL_FLAG - 1)).unwrap_or(u32::MAX);
-            let counterpart = match code >> 32 {
-                0 => Counterpart::Body(index),
-                1 => Counterpart::Wall(index),
-                _ => {
-                    return Err(bad(format!(
-                        "corrupted: history entry {i} has counterpart code {code}"
-                    )));
-                }
-            };
-            history.push((node as usize, counterpart, d));
-        }
-
-        // The file must describe the specimen its definition implies.
-        let counts = header.specimen.counts()?;
-        if counts.particles != n_particles || counts.nodes != n_nodes {
-            return Err(bad(format!(
-                "holds {n_particles} particles and {n_nodes} nodes, but its definition implies \
-                 {} and {}",
-                counts.particles, counts.nodes
-            )));
-        }
-        Ok(PreparedSpecimen {
-            spec: header.specimen,
-            particles,
-            dt,
-            state: Snapshot {
-                positions,
-                velocities,
-                history,
-                time,
-                step,
-            },
-            report: header.report,
+        Ok(Layout {
+            body_start: body_start as usize,
+            data_start: r.at,
+            particles: n_particles,
+            nodes: n_nodes,
+            history: n_history,
         })
     }
+}
+
+/// Refuses a file whose last eight bytes are not the checksum of the bytes before them.
+fn check_checksum(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
+    let end = bytes.len() - 8;
+    let mut hash = Fnv::new();
+    hash.update(&bytes[..end]);
+    let mut stored = [0u8; 8];
+    stored.copy_from_slice(&bytes[end..]);
+    if hash.0 != u64::from_le_bytes(stored) {
+        return Err(TriaxialError::file(
+            path,
+            "corrupted: the checksum does not match the contents; prepare the specimen again \
+             or restore the file from a good copy",
+        ));
+    }
+    Ok(())
+}
+
+/// Parses the TOML header and checks its format and the specimen definition.
+fn read_header(header_bytes: &[u8], path: &Path) -> Result<Header, TriaxialError> {
+    let bad = |m: String| TriaxialError::file(path, m);
+    let text = std::str::from_utf8(header_bytes)
+        .map_err(|_| bad("corrupted: the header is not UTF-8".into()))?;
+    let header: Header = toml::from_str(text)
+        .map_err(|e| bad(format!("the header does not parse: {}", e.message())))?;
+    if header.format != "fdem-specimen" || header.format_version != FORMAT_VERSION {
+        return Err(bad(format!(
+            "the header says format `{}` version {}, not fdem-specimen version {FORMAT_VERSION}",
+            header.format, header.format_version
+        )));
+    }
+    let origin = path.display().to_string();
+    header.specimen.validate(&origin)?;
+    Ok(header)
+}
+
+/// Reads what follows the counts: dt, the particles and the state (time, step, positions,
+/// velocities, tangential history).
+fn read_body(
+    r: &mut Reader<'_>,
+    layout: &Layout,
+    path: &Path,
+) -> Result<(f64, Vec<PlacedParticle>, Snapshot), TriaxialError> {
+    let dt = r.f64().unwrap_or(f64::NAN);
+    let time = r.f64().unwrap_or(f64::NAN);
+    let step = r.u64().unwrap_or(0);
+    let mut particles = Vec::with_capacity(layout.particles as usize);
+    for _ in 0..layout.particles {
+        let v: [f64; 8] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+        particles.push(PlacedParticle {
+            diameter: v[0],
+            center: [v[1], v[2], v[3]],
+            orientation: [v[4], v[5], v[6], v[7]],
+            class: 0,
+        });
+    }
+    for p in &mut particles {
+        p.class = r.u64().unwrap_or(0) as usize;
+    }
+    let mut vectors = |n: u64| -> Vec<[f64; 3]> {
+        (0..n)
+            .map(|_| std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN)))
+            .collect()
+    };
+    let positions = vectors(layout.nodes);
+    let velocities = vectors(layout.nodes);
+    let history = read_history(r, layout.history, path)?;
+    let state = Snapshot {
+        positions,
+        velocities,
+        history,
+        time,
+        step,
+    };
+    Ok((dt, particles, state))
+}
+
+/// Reads `n` history entries: node, counterpart code, tangential displacement.
+fn read_history(
+    r: &mut Reader<'_>,
+    n: u64,
+    path: &Path,
+) -> Result<Vec<(usize, Counterpart, [f64; 3])>, TriaxialError> {
+    let mut history = Vec::with_capacity(n as usize);
+    for i in 0..n {
+        let node = r.u64().unwrap_or(0);
+        let code = r.u64().unwrap_or(0);
+        let d: [f64; 3] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+        let index = u32::try_from(code & (WALL_FLAG - 1)).unwrap_or(u32::MAX);
+        let counterpart = match code >> 32 {
+            0 => Counterpart::Body(index),
+            1 => Counterpart::Wall(index),
+            _ => {
+                return Err(TriaxialError::file(
+                    path,
+                    format!("corrupted: history entry {i} has counterpart code {code}"),
+                ));
+            }
+        };
+        history.push((node as usize, counterpart, d));
+    }
+    Ok(history)
 }
 
 /// Little-endian reader over a byte slice whose length was checked beforehand.

@@ -5,7 +5,7 @@
 
 use anyhow::{Context, bail};
 use fdem_micro::{
-    Analysis, AnalysisOptions, ClusterParams, PairValidation, Series, SnapshotChoice,
+    Analysis, AnalysisOptions, ClusterParams, PairValidation, Series, SnapshotChoice, TableRow,
     all_snapshots, analyse, locate_snapshot, plot_distributions, summary_bodies, table,
     write_contacts,
 };
@@ -223,16 +223,7 @@ fn print_every(every: &[Analysis]) {
 
 /// Analyses the runs, prints and plots.
 pub fn run(args: &MicroArgs) -> anyhow::Result<()> {
-    if args.contacts_csv.is_some() && args.runs.len() > 1 {
-        bail!("--contacts-csv takes one run; give one RUN_DIR or drop the option");
-    }
-    if !args.labels.is_empty() && args.labels.len() != args.runs.len() {
-        bail!(
-            "--labels has {} entries for {} runs; give one label per run",
-            args.labels.len(),
-            args.runs.len()
-        );
-    }
+    check_args(args)?;
     let params = ClusterParams {
         eps: args.eps,
         eps_factor: args.eps_factor,
@@ -243,53 +234,132 @@ pub fn run(args: &MicroArgs) -> anyhow::Result<()> {
         boundary_bodies: args.boundary_body.clone(),
     };
     params.validate()?;
-    let mut analyses = Vec::new();
-    let mut snapshots: Vec<Vec<Analysis>> = Vec::new();
-    for (i, path) in args.runs.iter().enumerate() {
-        let files = locate_snapshot(path, args.snapshot)?;
-        let (particles, note) = match args.particles {
-            Some(n) => (Some(n), "--particles".to_string()),
-            None => match summary_bodies(path) {
-                Some(bodies) => {
-                    let boundary = params
-                        .boundary_bodies
-                        .iter()
-                        .filter(|&&b| (b as usize) < bodies)
-                        .collect::<std::collections::BTreeSet<_>>()
-                        .len();
-                    (Some(bodies - boundary), "summary.json".to_string())
-                }
-                None => (None, "seen in the snapshot".to_string()),
-            },
-        };
-        let options = AnalysisOptions {
-            params: params.clone(),
-            particles,
-            significance: args.significance,
-        };
-        let analysis = analyse(&files, &options)
-            .with_context(|| format!("analysing {}", files.nodes.display()))?;
-        let label = args
-            .labels
-            .get(i)
-            .cloned()
-            .unwrap_or_else(|| label_of(path));
-        let mut every = Vec::new();
-        if args.validate_all {
-            for f in all_snapshots(path)? {
-                every.push(
-                    analyse(&f, &options)
-                        .with_context(|| format!("analysing {}", f.nodes.display()))?,
-                );
+    let runs = args
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(i, path)| analyse_run(args, &params, i, path))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if let (Some(path), Some(first)) = (&args.contacts_csv, runs.first()) {
+        write_contacts(path, &first.analysis.clustering)?;
+    }
+    let svg = svg_path(args);
+    if let Some(path) = &svg {
+        let series: Vec<Series<'_>> = runs
+            .iter()
+            .map(|r| Series {
+                label: &r.label,
+                histogram: &r.analysis.statistics.histogram,
+            })
+            .collect();
+        plot_distributions(path, &series)?;
+    }
+    let rows = table(
+        &runs
+            .iter()
+            .map(|r| (r.label.clone(), &r.analysis.statistics))
+            .collect::<Vec<_>>(),
+    );
+    if args.json {
+        print_json(args, &params, &runs, &rows, &svg)?;
+    } else {
+        print_text(&runs, &rows, &svg);
+    }
+    Ok(())
+}
+
+/// One analysed run.
+struct RunAnalysis {
+    /// Its label in the table and legend.
+    label: String,
+    /// The analysis of the chosen snapshot.
+    analysis: Analysis,
+    /// Where its particle count comes from.
+    note: String,
+    /// With --validate-all, the analysis of every snapshot.
+    every: Vec<Analysis>,
+}
+
+/// Refuses option combinations that do not fit the runs given.
+fn check_args(args: &MicroArgs) -> anyhow::Result<()> {
+    if args.contacts_csv.is_some() && args.runs.len() > 1 {
+        bail!("--contacts-csv takes one run; give one RUN_DIR or drop the option");
+    }
+    if !args.labels.is_empty() && args.labels.len() != args.runs.len() {
+        bail!(
+            "--labels has {} entries for {} runs; give one label per run",
+            args.labels.len(),
+            args.runs.len()
+        );
+    }
+    Ok(())
+}
+
+/// The particle count for the coordination number of the run at `path`, and where it
+/// comes from: --particles, else the run's summary.json minus the boundary bodies, else
+/// the particles seen in the snapshot.
+fn particles_for(args: &MicroArgs, params: &ClusterParams, path: &Path) -> (Option<usize>, String) {
+    match args.particles {
+        Some(n) => (Some(n), "--particles".to_string()),
+        None => match summary_bodies(path) {
+            Some(bodies) => {
+                let boundary = params
+                    .boundary_bodies
+                    .iter()
+                    .filter(|&&b| (b as usize) < bodies)
+                    .collect::<std::collections::BTreeSet<_>>()
+                    .len();
+                (Some(bodies - boundary), "summary.json".to_string())
             }
+            None => (None, "seen in the snapshot".to_string()),
+        },
+    }
+}
+
+/// Locates and analyses the snapshot of run `i` at `path` (and every snapshot with
+/// --validate-all).
+fn analyse_run(
+    args: &MicroArgs,
+    params: &ClusterParams,
+    i: usize,
+    path: &Path,
+) -> anyhow::Result<RunAnalysis> {
+    let files = locate_snapshot(path, args.snapshot)?;
+    let (particles, note) = particles_for(args, params, path);
+    let options = AnalysisOptions {
+        params: params.clone(),
+        particles,
+        significance: args.significance,
+    };
+    let analysis = analyse(&files, &options)
+        .with_context(|| format!("analysing {}", files.nodes.display()))?;
+    let label = args
+        .labels
+        .get(i)
+        .cloned()
+        .unwrap_or_else(|| label_of(path));
+    let mut every = Vec::new();
+    if args.validate_all {
+        for f in all_snapshots(path)? {
+            every.push(
+                analyse(&f, &options)
+                    .with_context(|| format!("analysing {}", f.nodes.display()))?,
+            );
         }
-        analyses.push((label, analysis, note));
-        snapshots.push(every);
     }
-    if let (Some(path), Some((_, a, _))) = (&args.contacts_csv, analyses.first()) {
-        write_contacts(path, &a.clustering)?;
-    }
-    let svg = if args.no_svg {
+    Ok(RunAnalysis {
+        label,
+        analysis,
+        note,
+        every,
+    })
+}
+
+/// Where to write the plot: `None` with --no-svg, else --svg, else
+/// RUN_DIR/force_distribution.svg for one run directory, ./force_distribution.svg
+/// otherwise.
+fn svg_path(args: &MicroArgs) -> Option<PathBuf> {
+    if args.no_svg {
         None
     } else {
         Some(
@@ -300,93 +370,89 @@ pub fn run(args: &MicroArgs) -> anyhow::Result<()> {
                     _ => PathBuf::from("force_distribution.svg"),
                 }),
         )
-    };
-    if let Some(path) = &svg {
-        let series: Vec<Series<'_>> = analyses
-            .iter()
-            .map(|(label, a, _)| Series {
-                label,
-                histogram: &a.statistics.histogram,
-            })
-            .collect();
-        plot_distributions(path, &series)?;
     }
-    let rows = table(
-        &analyses
-            .iter()
-            .map(|(label, a, _)| (label.clone(), &a.statistics))
-            .collect::<Vec<_>>(),
-    );
-    if args.json {
-        let runs: Vec<serde_json::Value> = analyses
-            .iter()
-            .zip(&snapshots)
-            .map(|((label, a, note), every)| {
-                let mut clustering = serde_json::to_value(&a.clustering)?;
-                if let Some(map) = clustering.as_object_mut() {
-                    map.remove("contacts");
-                }
-                let every: Vec<serde_json::Value> = every
-                    .iter()
-                    .map(|s| {
-                        json!({
-                            "nodes_file": s.files.nodes,
-                            "pairs_file": s.files.pairs,
-                            "time": s.clustering.time,
-                            "contacts": s.statistics.contacts,
-                            "mean_normal_force": s.statistics.mean_normal_force,
-                            "validation": s.validation,
-                        })
+}
+
+/// Prints everything as one JSON object.
+fn print_json(
+    args: &MicroArgs,
+    params: &ClusterParams,
+    runs: &[RunAnalysis],
+    rows: &[TableRow],
+    svg: &Option<PathBuf>,
+) -> anyhow::Result<()> {
+    let runs: Vec<serde_json::Value> = runs
+        .iter()
+        .map(|r| {
+            let a = &r.analysis;
+            let mut clustering = serde_json::to_value(&a.clustering)?;
+            if let Some(map) = clustering.as_object_mut() {
+                map.remove("contacts");
+            }
+            let every: Vec<serde_json::Value> = r
+                .every
+                .iter()
+                .map(|s| {
+                    json!({
+                        "nodes_file": s.files.nodes,
+                        "pairs_file": s.files.pairs,
+                        "time": s.clustering.time,
+                        "contacts": s.statistics.contacts,
+                        "mean_normal_force": s.statistics.mean_normal_force,
+                        "validation": s.validation,
                     })
-                    .collect();
-                Ok(json!({
-                    "label": label,
-                    "nodes_file": a.files.nodes,
-                    "pairs_file": a.files.pairs,
-                    "particles_from": note,
-                    "clustering": clustering,
-                    "statistics": a.statistics,
-                    "validation": a.validation,
-                    "snapshots": every,
-                }))
-            })
-            .collect::<Result<_, serde_json::Error>>()?;
-        let out = json!({
-            "parameters": params,
-            "significance": args.significance,
-            "runs": runs,
-            "table": rows,
-            "svg": svg,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        for ((label, a, note), every) in analyses.iter().zip(&snapshots) {
-            print_run(label, a, note);
-            if !every.is_empty() {
-                print_every(every);
-            }
-        }
-        if analyses.len() > 1 {
-            println!();
-            println!(
-                "{:<24} {:>18} {:>10} {:>10} {:>8}",
-                "run", "mean F_n (N)", "ratio", "contacts", "Z"
-            );
-            for r in &rows {
-                println!(
-                    "{:<24} {:>18.6e} {:>10} {:>10} {:>8.3}",
-                    r.label,
-                    r.mean_normal_force,
-                    r.ratio_to_first
-                        .map_or_else(|| "n/a".to_string(), |v| format!("{v:.3}")),
-                    r.contacts,
-                    r.coordination_number
-                );
-            }
-        }
-        if let Some(path) = &svg {
-            println!("plot: {}", path.display());
+                })
+                .collect();
+            Ok(json!({
+                "label": r.label,
+                "nodes_file": a.files.nodes,
+                "pairs_file": a.files.pairs,
+                "particles_from": r.note,
+                "clustering": clustering,
+                "statistics": a.statistics,
+                "validation": a.validation,
+                "snapshots": every,
+            }))
+        })
+        .collect::<Result<_, serde_json::Error>>()?;
+    let out = json!({
+        "parameters": params,
+        "significance": args.significance,
+        "runs": runs,
+        "table": rows,
+        "svg": svg,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
+/// Prints each run, the comparison table of several runs, and where the plot went.
+fn print_text(runs: &[RunAnalysis], rows: &[TableRow], svg: &Option<PathBuf>) {
+    for r in runs {
+        print_run(&r.label, &r.analysis, &r.note);
+        if !r.every.is_empty() {
+            print_every(&r.every);
         }
     }
-    Ok(())
+    if runs.len() > 1 {
+        println!();
+        println!(
+            "{:<24} {:>18} {:>10} {:>10} {:>8}",
+            "run", "mean F_n (N)", "ratio", "contacts", "Z"
+        );
+        for r in rows {
+            println!(
+                "{:<24} {:>18.6e} {:>10} {:>10} {:>8.3}",
+                r.label,
+                r.mean_normal_force,
+                r.ratio_to_first
+                    .map_or_else(|| "n/a".to_string(), |v| format!("{v:.3}")),
+                r.contacts,
+                r.coordination_number
+            );
+        }
+    }
+    if let Some(path) = svg {
+        println!("plot: {}", path.display());
+    }
 }

@@ -1,0 +1,463 @@
+//! One narrow-phase pass: the contacts of every surface node in one evaluation.
+//!
+//! Per surface node, in the order of its candidates (sorted by owner body by the broad
+//! phase): for each other body the nearest face the node is behind with its foot inside,
+//! with the rules for sheets and the closest-face rule of [`crate::sheet`]; then the
+//! walls. Each contact is evaluated with the law against its tangential history (the
+//! previous evaluation's contact with the same key) and recorded with what the report
+//! needs. Surface nodes are processed in fixed chunks of [`CHUNK`], each writing its own
+//! records and sums, so the result does not depend on the thread count; the model adds
+//! the forces afterwards, serially in node order.
+
+use crate::broad::{BroadPhase, CHUNK, Candidate};
+use crate::law::{LawInput, evaluate_law};
+use crate::model::{Counterpart, NodeContact, TUNNELLING_FRACTION, history_key};
+use crate::narrow::{FaceHit, ProjectionKernel};
+use crate::sheet::{self, Sheets};
+use crate::vec3::{add, norm, scale, sub};
+use crate::wall::wall_distance;
+use crate::{ContactError, ContactSurface, NodeCoefficients, Wall, WallShape};
+
+/// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
+const PLANE_SLACK: f64 = 1e-9;
+
+/// One chunk's sums for the report.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Sums {
+    /// Sheet hits discarded as fold artefacts.
+    pub(crate) discarded: usize,
+    pub(crate) stored: f64,
+    pub(crate) normal_damping: f64,
+    pub(crate) tangential_damping: f64,
+    pub(crate) friction: f64,
+    pub(crate) max_depth: f64,
+}
+
+/// What one chunk of surface nodes writes: its contact records, its sums, its first error.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ChunkScratch {
+    pub(crate) contacts: Vec<NodeContact>,
+    /// Signed distances of the current node to its candidates' planes.
+    signed: Vec<f64>,
+    pub(crate) sums: Sums,
+    pub(crate) error: Option<ContactError>,
+}
+
+/// The contact of a node with one face: the triangle, its global node ids, the hit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FaceContact {
+    pub(crate) triangle: usize,
+    pub(crate) nodes: [usize; 3],
+    pub(crate) hit: FaceHit,
+}
+
+/// A node and its candidate faces on one other body: what the per-body rules look at.
+pub(crate) struct FaceGroup<'a> {
+    /// Position of the node (m).
+    pub(crate) x: [f64; 3],
+    /// The other body.
+    pub(crate) body: u32,
+    /// The node's candidate faces on that body.
+    pub(crate) cands: &'a [Candidate],
+    /// The node's signed distances to their planes (positive in front).
+    pub(crate) signed: &'a [f64],
+    /// Positions of all nodes (m).
+    pub(crate) positions: &'a [[f64; 3]],
+    pub(crate) reach: Reach,
+}
+
+/// The reach of the narrow phase behind a face's plane: the depth limit, and the slack of
+/// the plane pre-filter.
+///
+/// The signed distances to the candidates' planes are a cheap pre-filter. Every test is
+/// exact on its own; the filter only skips faces that are beyond its reach by more than
+/// `slack`, far above the round-off of `n . x - n . a` (1e-16 of the coordinates), so the
+/// contacts are unchanged.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Reach {
+    pub(crate) depth_limit: f64,
+    pub(crate) slack: f64,
+}
+
+impl Reach {
+    fn of(depth_limit: f64) -> Reach {
+        Reach {
+            depth_limit,
+            slack: PLANE_SLACK * depth_limit,
+        }
+    }
+
+    /// Behind the plane (or on it) by at most the depth limit, up to the slack.
+    #[inline]
+    pub(crate) fn within(self, s: f64) -> bool {
+        s <= self.slack && s >= -self.depth_limit - self.slack
+    }
+}
+
+/// Read-only context of one narrow-phase pass.
+pub(crate) struct Ctx<'a> {
+    pub(crate) surface: &'a ContactSurface,
+    pub(crate) broad: &'a BroadPhase,
+    pub(crate) coefficients: &'a [NodeCoefficients],
+    pub(crate) walls: &'a [Wall],
+    pub(crate) wall_shapes: &'a [WallShape],
+    /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
+    pub(crate) planes: &'a [[f64; 4]],
+    /// The contacts of the previous evaluation, sorted by key: the tangential history.
+    pub(crate) previous: &'a [NodeContact],
+    pub(crate) kernel: ProjectionKernel,
+    pub(crate) positions: &'a [[f64; 3]],
+    pub(crate) velocities: &'a [[f64; 3]],
+    pub(crate) dt: f64,
+    pub(crate) margin: f64,
+    pub(crate) depth_limit: f64,
+    /// Whether to check each node against the faces' velocities for tunnelling.
+    pub(crate) check_faces: bool,
+    /// Whether to check each node against the walls' velocities for tunnelling.
+    pub(crate) check_walls: bool,
+    pub(crate) sheets: &'a Sheets,
+}
+
+impl Ctx<'_> {
+    /// The contact `key` of the previous evaluation, if there was one. Keys arrive in
+    /// increasing order within a chunk, and `previous` is sorted by key, so a cursor that
+    /// only moves forward finds them (a merge, not a search per contact).
+    #[inline]
+    fn previous(&self, key: u64, cursor: &mut usize) -> Option<&NodeContact> {
+        let previous = self.previous;
+        while *cursor < previous.len() && previous[*cursor].key < key {
+            *cursor += 1;
+        }
+        previous.get(*cursor).filter(|c| c.key == key)
+    }
+
+    fn tunnelling(&self, k: usize, relative_to: Counterpart, displacement: f64) -> ContactError {
+        ContactError::Tunnelling {
+            node: self.surface.surface_nodes[k],
+            body: self.surface.node_body[k],
+            relative_to: relative_to.to_string(),
+            displacement,
+            margin: self.margin,
+            dt: self.dt,
+        }
+    }
+
+    /// All contacts of the surface nodes of `chunk` (fixed chunks of [`CHUNK`] nodes) into
+    /// `scratch`; stops at the first error.
+    pub(crate) fn run_chunk(&self, chunk: usize, scratch: &mut ChunkScratch) {
+        scratch.contacts.clear();
+        scratch.sums = Sums::default();
+        scratch.error = None;
+        let n = self.surface.surface_nodes.len();
+        let start = chunk * CHUNK;
+        let first_key = history_key(start, Counterpart::Body(0));
+        let mut cursor = self.previous.partition_point(|c| c.key < first_key);
+        for k in start..(start + CHUNK).min(n) {
+            if let Err(e) = self.node(k, scratch, &mut cursor) {
+                scratch.error = Some(e);
+                return;
+            }
+        }
+    }
+
+    /// All contacts of surface node `k`: the best face per other body, then the walls.
+    fn node(
+        &self,
+        k: usize,
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+    ) -> Result<(), ContactError> {
+        let node = self.surface.surface_nodes[k];
+        let x = self.positions[node];
+        let v = self.velocities[node];
+        let cands = self.broad.candidates(k);
+        let mut signed = std::mem::take(&mut scratch.signed);
+        self.signed_distances(x, cands, &mut signed);
+        let faces = self.body_contacts(k, x, v, cands, &signed, scratch, cursor);
+        scratch.signed = signed;
+        faces?;
+        self.wall_contacts(k, x, v, scratch, cursor)
+    }
+
+    /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`.
+    fn signed_distances(&self, x: [f64; 3], cands: &[Candidate], signed: &mut Vec<f64>) {
+        signed.clear();
+        signed.extend(cands.iter().map(|c| {
+            let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
+            nx * x[0] + ny * x[1] + nz * x[2] - offset
+        }));
+    }
+
+    /// The contacts of surface node `k` (at `x`, velocity `v`) with the faces of other
+    /// bodies: at most one per body, from the candidates of that body (consecutive, as the
+    /// broad phase sorts them by body).
+    #[allow(clippy::too_many_arguments)]
+    fn body_contacts(
+        &self,
+        k: usize,
+        x: [f64; 3],
+        v: [f64; 3],
+        cands: &[Candidate],
+        signed: &[f64],
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+    ) -> Result<(), ContactError> {
+        let reach = Reach::of(self.depth_limit);
+        let mut start = 0;
+        while start < cands.len() {
+            let body = cands[start].body;
+            let end = start + cands[start..].iter().take_while(|c| c.body == body).count();
+            let group = FaceGroup {
+                x,
+                body,
+                cands: &cands[start..end],
+                signed: &signed[start..end],
+                positions: self.positions,
+                reach,
+            };
+            start = end;
+            if let Some(contact) = self.group_contact(k, v, &group, &mut scratch.sums)? {
+                self.push_face(k, v, body, contact, scratch, cursor)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The contact of surface node `k` with one other body: the nearest face it is behind,
+    /// else for a sheet its nearest edge; none when a nearer face of the body has it in
+    /// front, or when it is a sheet's fold artefact (counted in `sums`). The sheet rules
+    /// are explained in the `sheet` module.
+    fn group_contact(
+        &self,
+        k: usize,
+        v: [f64; 3],
+        group: &FaceGroup<'_>,
+        sums: &mut Sums,
+    ) -> Result<Option<FaceContact>, ContactError> {
+        let mut best = self.nearest_face(k, v, group)?;
+        if best.is_none() && self.sheets.is_sheet(group.body) {
+            best = sheet::edge_contact(group);
+        }
+        // Closest face wins: a face of the same body that covers the node from the
+        // front, nearer than the deepest-behind hit, means the node is outside there.
+        let best = best.filter(|b| !sheet::covered_in_front(group, b.hit.depth));
+        // A sheet hit deeper than the fold depth is a fold artefact (the sheet moves
+        // slowly and has the edge test): discard it, count it.
+        Ok(match best {
+            Some(b) if self.sheets.is_fold_artefact(group.body, b.hit.depth) => {
+                sums.discarded += 1;
+                None
+            }
+            other => other,
+        })
+    }
+
+    /// The nearest face of the group that node `k` is behind with its foot inside, after
+    /// the tunnelling check against every face of the group (when this step needs it).
+    fn nearest_face(
+        &self,
+        k: usize,
+        v: [f64; 3],
+        group: &FaceGroup<'_>,
+    ) -> Result<Option<FaceContact>, ContactError> {
+        let (x, reach) = (group.x, group.reach);
+        let half = TUNNELLING_FRACTION * self.margin;
+        let mut best: Option<FaceContact> = None;
+        for (c, &s) in group.cands.iter().zip(group.signed) {
+            let nodes = c.nodes.map(|j| j as usize);
+            if self.check_faces {
+                let vc = scale(
+                    add(
+                        add(self.velocities[nodes[0]], self.velocities[nodes[1]]),
+                        self.velocities[nodes[2]],
+                    ),
+                    1.0 / 3.0,
+                );
+                let d = norm(sub(v, vc)) * self.dt;
+                if d > half {
+                    return Err(self.tunnelling(k, Counterpart::Body(group.body), d));
+                }
+            }
+            if !reach.within(s) {
+                continue;
+            }
+            let face = nodes.map(|j| self.positions[j]);
+            if let Some(hit) = self.kernel.project(x, face, reach.depth_limit)
+                && best.is_none_or(|b| hit.depth < b.hit.depth)
+            {
+                best = Some(FaceContact {
+                    triangle: c.triangle as usize,
+                    nodes,
+                    hit,
+                });
+            }
+        }
+        Ok(best)
+    }
+
+    /// Records the contact of surface node `k` (velocity `v`) with a face of body `other`,
+    /// refusing one deeper than [`TUNNELLING_FRACTION`] of the depth limit.
+    fn push_face(
+        &self,
+        k: usize,
+        v: [f64; 3],
+        other: u32,
+        contact: FaceContact,
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+    ) -> Result<(), ContactError> {
+        let FaceContact {
+            triangle,
+            nodes,
+            hit,
+        } = contact;
+        let counterpart = Counterpart::Body(other);
+        let depth_limit = self.depth_limit;
+        if hit.depth > TUNNELLING_FRACTION * depth_limit {
+            return Err(ContactError::PenetrationTooDeep {
+                node: self.surface.surface_nodes[k],
+                body: self.surface.node_body[k],
+                counterpart,
+                depth: hit.depth,
+                depth_limit,
+            });
+        }
+        let w = hit.weights;
+        let mut v_face = [0.0; 3];
+        let mut point = [0.0; 3];
+        for (j, wj) in nodes.iter().zip(w) {
+            v_face = add(v_face, scale(self.velocities[*j], wj));
+            point = add(point, scale(self.positions[*j], wj));
+        }
+        self.push(
+            scratch,
+            cursor,
+            k,
+            counterpart,
+            Some(triangle),
+            w,
+            point,
+            hit.depth,
+            hit.normal,
+            sub(v, v_face),
+        );
+        Ok(())
+    }
+
+    /// The contacts of surface node `k` (at `x`, velocity `v`) with the walls, after the
+    /// tunnelling check against each wall (when this step needs it).
+    fn wall_contacts(
+        &self,
+        k: usize,
+        x: [f64; 3],
+        v: [f64; 3],
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+    ) -> Result<(), ContactError> {
+        let half = TUNNELLING_FRACTION * self.margin;
+        for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
+            let Some((distance, normal)) = wall_distance(shape, x) else {
+                continue;
+            };
+            let counterpart = Counterpart::Wall(w as u32);
+            let v_rel = sub(v, wall.velocity);
+            if self.check_walls {
+                let d = norm(v_rel) * self.dt;
+                if d > half && distance < self.margin + d {
+                    return Err(self.tunnelling(k, counterpart, d));
+                }
+            }
+            if distance < 0.0 {
+                let depth = -distance;
+                let point = add(x, scale(normal, depth));
+                self.push(
+                    scratch,
+                    cursor,
+                    k,
+                    counterpart,
+                    None,
+                    [0.0; 3],
+                    point,
+                    depth,
+                    normal,
+                    v_rel,
+                );
+            }
+        }
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn push(
+        &self,
+        scratch: &mut ChunkScratch,
+        cursor: &mut usize,
+        k: usize,
+        counterpart: Counterpart,
+        face: Option<usize>,
+        weights: [f64; 3],
+        contact_point: [f64; 3],
+        depth: f64,
+        normal: [f64; 3],
+        relative_velocity: [f64; 3],
+    ) {
+        let key = history_key(k, counterpart);
+        let previous = self.previous(key, cursor);
+        let mut history = previous.map_or([0.0; 3], |c| c.tangential_displacement);
+        let out = evaluate_law(
+            &LawInput {
+                normal,
+                depth,
+                relative_velocity,
+                dt: self.dt,
+                coefficients: self.coefficients[k],
+            },
+            &mut history,
+        );
+        // The dashpot power is evaluated at the half-step velocity v(n+1/2), but velocity
+        // Verlet applies this force over the kicks from v(n+1/2) to v(n+3/2): its true
+        // work is `F . (v(n+1/2) + v(n+3/2)) / 2 dt`. The previous force's missing share,
+        // `-F_nc(n) . (v(n+3/2) - v(n+1/2)) / 2`, is booked now that v(n+3/2) is known
+        // (the dashpots of light nodes have `c dt / m` of order 0.1-1, where the
+        // difference is tens of percent of the dissipation). `F_nc` is the non-elastic
+        // part of the force: the normal dashpot and the tangential force beyond the spring.
+        let damping_force = add(
+            scale(
+                normal,
+                out.normal_magnitude - self.coefficients[k].normal_stiffness * depth,
+            ),
+            add(
+                out.tangential_force,
+                scale(history, self.coefficients[k].tangential_stiffness),
+            ),
+        );
+        let correction = previous.map_or(0.0, |c| {
+            -0.5 * crate::vec3::dot(c.damping_force, sub(relative_velocity, c.relative_velocity))
+        });
+        let sums = &mut scratch.sums;
+        sums.stored += out.stored_energy;
+        sums.normal_damping += out.normal_damping_power + correction;
+        sums.tangential_damping += out.tangential_damping_power;
+        sums.friction += out.friction_dissipation;
+        sums.max_depth = sums.max_depth.max(depth);
+        let node = self.surface.surface_nodes[k];
+        scratch.contacts.push(NodeContact {
+            key,
+            node,
+            body: self.surface.node_body[k],
+            counterpart,
+            face,
+            weights,
+            position: self.positions[node],
+            contact_point,
+            depth,
+            normal_force: out.normal_force,
+            tangential_force: out.tangential_force,
+            tangential_displacement: history,
+            sliding: out.sliding,
+            damping_force,
+            relative_velocity,
+        });
+    }
+}
