@@ -111,79 +111,26 @@ pub fn run(
     let mut sim = scene.build()?;
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| SolverError::io("creating directory", dir, e))?;
-    let steps = step_count(scene.simulation.duration, sim.dt());
     let plan = RunPlan {
         duration: scene.simulation.duration,
         dt: sim.dt(),
-        steps,
+        steps: step_count(scene.simulation.duration, sim.dt()),
         bodies: sim.bodies().len(),
         nodes: sim.state().len(),
-        elements: sim.bodies().iter().map(|b| b.elements.len()).sum(),
+        elements: sim.n_elements(),
     };
     observer.start(&plan);
-    let mut energy = CsvSeries::create(dir, "energy.csv", ENERGY_HEADER)?;
-    let mut bodies = CsvSeries::create(dir, "bodies.csv", BODIES_HEADER)?;
-    let mut walls = CsvSeries::create(dir, "walls.csv", WALLS_HEADER)?;
-    let mut vtk = if options.vtk {
-        Some(VtkSeries::create(dir)?)
-    } else {
-        None
-    };
-
-    let interval = scene.output_interval();
+    let mut outputs = Outputs::create(options)?;
     let wall = Instant::now();
     let cpu = cpu_time::ProcessTime::try_now().ok();
-    let mut outputs = 0usize;
-    let mut max_rel = 0.0f64;
-    let mut next_output = 0.0;
-    let contacts = options.contacts;
-    let mut write_output = |sim: &Simulation,
-                            energy: &mut CsvSeries,
-                            bodies: &mut CsvSeries,
-                            walls: &mut CsvSeries,
-                            vtk: &mut Option<VtkSeries>|
-     -> Result<(), SolverError> {
-        let e = sim.check_energy()?;
-        max_rel = max_rel.max(sim.relative_balance_error(&e));
-        energy.row(&energy_row(&e))?;
-        body_rows(sim, bodies)?;
-        wall_rows(sim, walls)?;
-        if contacts {
-            contact_snapshot(sim, dir, outputs)?;
-        }
-        if let Some(v) = vtk.as_mut() {
-            v.frame(sim)?;
-        }
-        outputs += 1;
-        Ok(())
-    };
-
-    let mut outcome: Result<(), SolverError> = Ok(());
-    // Output at t = 0, then step.
-    outcome =
-        outcome.and_then(|_| write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk));
-    next_output += interval;
-    while outcome.is_ok() && sim.step() < steps {
-        if interrupt.load(Ordering::Relaxed) {
-            outcome = Err(SolverError::Interrupted {
-                time: sim.time(),
-                step: sim.step(),
-            });
-            break;
-        }
-        outcome = sim.advance();
-        if outcome.is_err() {
-            break;
-        }
-        let last = sim.step() == steps;
-        if last || sim.time() >= next_output - 0.5 * sim.dt() {
-            outcome = write_output(&sim, &mut energy, &mut bodies, &mut walls, &mut vtk);
-            while next_output <= sim.time() + 0.5 * sim.dt() {
-                next_output += interval;
-            }
-            observer.progress(sim.time(), sim.step());
-        }
-    }
+    let outcome = time_loop(
+        &mut sim,
+        scene,
+        plan.steps,
+        &mut outputs,
+        observer,
+        interrupt,
+    );
     let wall_seconds = wall.elapsed().as_secs_f64();
     let cpu_seconds = cpu.map_or(f64::NAN, |c| c.elapsed().as_secs_f64());
     let status = match &outcome {
@@ -207,17 +154,105 @@ pub fn run(
         bodies: plan.bodies,
         nodes: plan.nodes,
         elements: plan.elements,
-        outputs,
-        max_relative_balance_error: max_rel,
+        outputs: outputs.written,
+        max_relative_balance_error: outputs.max_relative_error,
         wall_seconds,
         cpu_seconds,
         threads: rayon::current_num_threads(),
     };
-    energy.finish()?;
-    bodies.finish()?;
-    walls.finish()?;
+    outputs.finish()?;
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| SolverError::InvalidScene(format!("serializing the summary: {e}")))?;
     write_atomically(&dir.join("summary.json"), &json)?;
     outcome.map(|()| summary)
+}
+
+/// Steps `sim` to `steps` with an output at `t = 0`, at the first step at or past each
+/// output time and at the end; stops at an interruption or an error.
+fn time_loop(
+    sim: &mut Simulation,
+    scene: &Scene,
+    steps: u64,
+    outputs: &mut Outputs,
+    observer: &mut dyn Observer,
+    interrupt: &AtomicBool,
+) -> Result<(), SolverError> {
+    let interval = scene.output_interval();
+    outputs.write(sim)?;
+    let mut next_output = interval;
+    while sim.step() < steps {
+        if interrupt.load(Ordering::Relaxed) {
+            return Err(SolverError::Interrupted {
+                time: sim.time(),
+                step: sim.step(),
+            });
+        }
+        sim.advance()?;
+        let last = sim.step() == steps;
+        if last || sim.time() >= next_output - 0.5 * sim.dt() {
+            outputs.write(sim)?;
+            while next_output <= sim.time() + 0.5 * sim.dt() {
+                next_output += interval;
+            }
+            observer.progress(sim.time(), sim.step());
+        }
+    }
+    Ok(())
+}
+
+/// The output series of a run: `energy.csv`, `bodies.csv`, `walls.csv`, optional VTU
+/// frames and contact snapshots.
+struct Outputs {
+    dir: PathBuf,
+    energy: CsvSeries,
+    bodies: CsvSeries,
+    walls: CsvSeries,
+    vtk: Option<VtkSeries>,
+    contacts: bool,
+    written: usize,
+    max_relative_error: f64,
+}
+
+impl Outputs {
+    fn create(options: &RunOptions) -> Result<Self, SolverError> {
+        let dir = &options.out_dir;
+        Ok(Outputs {
+            dir: dir.clone(),
+            energy: CsvSeries::create(dir, "energy.csv", ENERGY_HEADER)?,
+            bodies: CsvSeries::create(dir, "bodies.csv", BODIES_HEADER)?,
+            walls: CsvSeries::create(dir, "walls.csv", WALLS_HEADER)?,
+            vtk: if options.vtk {
+                Some(VtkSeries::create(dir)?)
+            } else {
+                None
+            },
+            contacts: options.contacts,
+            written: 0,
+            max_relative_error: 0.0,
+        })
+    }
+
+    /// One output of every series, after the energy check.
+    fn write(&mut self, sim: &Simulation) -> Result<(), SolverError> {
+        let e = sim.check_energy()?;
+        self.max_relative_error = self.max_relative_error.max(sim.relative_balance_error(&e));
+        self.energy.row(&energy_row(&e))?;
+        body_rows(sim, &mut self.bodies)?;
+        wall_rows(sim, &mut self.walls)?;
+        if self.contacts {
+            contact_snapshot(sim, &self.dir, self.written)?;
+        }
+        if let Some(v) = self.vtk.as_mut() {
+            v.frame(sim)?;
+        }
+        self.written += 1;
+        Ok(())
+    }
+
+    /// Completes the CSV series (renamed into place).
+    fn finish(self) -> Result<(), SolverError> {
+        self.energy.finish()?;
+        self.bodies.finish()?;
+        self.walls.finish()
+    }
 }
