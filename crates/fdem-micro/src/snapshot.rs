@@ -458,11 +458,7 @@ pub fn parse_pairs<R: Read>(input: R, file: &str) -> Result<Vec<PairRow>, MicroE
 
 /// Writes `text` to `path` through a temporary file and a rename.
 pub(crate) fn write_atomically(path: &Path, text: &[u8]) -> Result<(), MicroError> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part");
-    let partial = path.with_file_name(name);
-    std::fs::write(&partial, text).map_err(|e| MicroError::io("writing", &partial, e))?;
-    std::fs::rename(&partial, path).map_err(|e| MicroError::io("renaming", &partial, e))
+    fdem_core::fs::write_atomically(path, text).map_err(|e| MicroError::io("writing", path, e))
 }
 
 fn counterpart_columns(c: Counterpart) -> (String, String) {

@@ -1,55 +1,46 @@
 //! Run outputs: CSV series, the JSON summary and VTU frames, each written to a temporary
-//! name and renamed into place when complete.
+//! name (`NAME.part`) and renamed into place when complete (`fdem_core::fs`).
 
 use crate::SolverError;
 use crate::engine::{EnergyReport, Simulation};
+use fdem_core::fs::AtomicFile;
 use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// A CSV file written under `NAME.part` and renamed to `NAME` by [`CsvSeries::finish`].
+/// A CSV file written under `NAME.part` and renamed to `NAME` by [`CsvSeries::finish`];
+/// dropped unfinished, it leaves no file.
 pub struct CsvSeries {
-    writer: BufWriter<File>,
-    partial: PathBuf,
-    path: PathBuf,
+    file: AtomicFile,
 }
 
 impl CsvSeries {
     /// Creates `dir/name.part` and writes the header row.
     pub fn create(dir: &Path, name: &str, header: &str) -> Result<Self, SolverError> {
         let path = dir.join(name);
-        let partial = dir.join(format!("{name}.part"));
-        let file = File::create(&partial).map_err(|e| SolverError::io("creating", &partial, e))?;
-        let mut series = CsvSeries {
-            writer: BufWriter::new(file),
-            partial,
-            path,
-        };
+        let file = AtomicFile::create(&path).map_err(|e| SolverError::io("creating", &path, e))?;
+        let mut series = CsvSeries { file };
         series.row(header)?;
         Ok(series)
     }
 
     /// Appends one row (without the newline).
     pub fn row(&mut self, line: &str) -> Result<(), SolverError> {
-        writeln!(self.writer, "{line}").map_err(|e| SolverError::io("writing", &self.partial, e))
+        writeln!(self.file, "{line}").map_err(|e| SolverError::io("writing", self.file.path(), e))
     }
 
     /// Flushes and renames the file into place.
-    pub fn finish(mut self) -> Result<(), SolverError> {
-        self.writer
-            .flush()
-            .map_err(|e| SolverError::io("writing", &self.partial, e))?;
-        std::fs::rename(&self.partial, &self.path)
-            .map_err(|e| SolverError::io("renaming", &self.partial, e))
+    pub fn finish(self) -> Result<(), SolverError> {
+        let path = self.file.path().to_path_buf();
+        self.file
+            .finish()
+            .map_err(|e| SolverError::io("writing", path, e))
     }
 }
 
 /// Writes `text` to `path` through a temporary file and a rename.
 pub fn write_atomically(path: &Path, text: &str) -> Result<(), SolverError> {
-    let partial = path.with_extension("part");
-    std::fs::write(&partial, text).map_err(|e| SolverError::io("writing", &partial, e))?;
-    std::fs::rename(&partial, path).map_err(|e| SolverError::io("renaming", &partial, e))
+    fdem_core::fs::write_atomically(path, text).map_err(|e| SolverError::io("writing", path, e))
 }
 
 /// Header of `energy.csv`.

@@ -62,7 +62,7 @@ impl CurvePlot {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlotError {
-    /// Drawing failed (or the path names no file).
+    /// Drawing failed.
     #[error("plotting {}: {message}", path.display())]
     Draw {
         /// The figure's path.
@@ -73,9 +73,9 @@ pub enum PlotError {
     /// Writing or renaming the file failed.
     #[error("{action} {}: {source}", path.display())]
     Io {
-        /// What was being done (`writing`, `renaming`).
+        /// What was being done (`writing`).
         action: &'static str,
-        /// The file concerned (the temporary file for `writing`).
+        /// The figure's path.
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
@@ -209,33 +209,10 @@ pub fn plot_curves(
         }
         root.present().map_err(|e| err(e.to_string()))?;
     }
-    write_atomically(path, svg.as_bytes())
-}
-
-/// Writes `bytes` to a temporary file next to `path`, then renames it over `path`.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), PlotError> {
-    let Some(name) = path.file_name() else {
-        return Err(PlotError::Draw {
-            path: path.to_path_buf(),
-            message: "the path names no file".into(),
-        });
-    };
-    let mut partial = std::ffi::OsString::from(".");
-    partial.push(name);
-    partial.push(format!(".{}.part", std::process::id()));
-    let partial = path.with_file_name(partial);
-    let io = |action, path: &Path| {
-        let path = path.to_path_buf();
-        move |source| PlotError::Io {
-            action,
-            path,
-            source,
-        }
-    };
-    std::fs::write(&partial, bytes).map_err(io("writing", &partial))?;
-    std::fs::rename(&partial, path).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        io("renaming", &partial)(e)
+    fdem_core::fs::write_atomically(path, svg).map_err(|source| PlotError::Io {
+        action: "writing",
+        path: path.to_path_buf(),
+        source,
     })
 }
 
