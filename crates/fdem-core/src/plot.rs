@@ -10,6 +10,10 @@ use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
 use plotters::prelude::*;
 
+/// The plotting types a figure names: colours, legend positions and `.log_scale()` on a
+/// range.
+pub use plotters::prelude::{IntoLogRange, RGBColor, SeriesLabelPosition};
+
 /// Line colours, cycled by [`colour`]: the Okabe-Ito colour-blind-safe palette.
 pub const PALETTE: [RGBColor; 8] = [
     RGBColor(0, 114, 178),
