@@ -33,6 +33,19 @@ pub fn positive_number(flag: &str, text: &str) -> anyhow::Result<f64> {
     Ok(value)
 }
 
+/// Sets the number of worker threads of the global pool from `--threads` (all cores when
+/// it is not given).
+pub fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(threads) = threads {
+        anyhow::ensure!(threads > 0, "--threads must be at least 1");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    Ok(())
+}
+
 /// Writes a scene to `path` atomically, with a header comment saying where it came from.
 pub fn write_scene(
     scene: &fdem_solver::Scene,
