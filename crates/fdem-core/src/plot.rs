@@ -115,130 +115,129 @@ impl Style {
             .build_cartesian_2d(x, y)
             .map_err(message)
     }
+}
 
-    /// The axes, grid and tick labels of `chart`, with the axis descriptions.
+/// Drawing on a [`Chart`] in the project's style: axes, legend and the kinds of series the
+/// figures use. Implemented for every chart with `f64` axes (linear or logarithmic).
+pub trait Draw {
+    /// The axes, grid and tick labels, with the axis descriptions, sized by `style`.
     ///
     /// # Errors
     /// The plotting library's message.
-    pub fn axes<X, Y>(
-        &self,
-        chart: &mut Chart<'_, '_, X, Y>,
-        x_desc: &str,
-        y_desc: &str,
-    ) -> DrawResult
-    where
-        X: Ranged<ValueType = f64> + ValueFormatter<f64>,
-        Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
-    {
-        let mut mesh = chart.configure_mesh();
+    fn draw_axes(&mut self, style: &Style, x_desc: &str, y_desc: &str) -> DrawResult;
+
+    /// The legend of the labelled series at `position`, on a translucent white box with a
+    /// black border, in `style`'s legend font.
+    ///
+    /// # Errors
+    /// The plotting library's message.
+    fn draw_legend(&mut self, style: &Style, position: SeriesLabelPosition) -> DrawResult;
+
+    /// A data series: a line through `points` in `colour` ([`SERIES_WIDTH`] wide), with a
+    /// legend entry when `label` is given.
+    ///
+    /// # Errors
+    /// The plotting library's message.
+    fn draw_line(
+        &mut self,
+        points: impl IntoIterator<Item = (f64, f64)>,
+        colour: RGBColor,
+        label: Option<&str>,
+    ) -> DrawResult;
+
+    /// Filled dots of [`DOT_RADIUS`] at `points`, in `colour`.
+    ///
+    /// # Errors
+    /// The plotting library's message.
+    fn draw_dots(
+        &mut self,
+        points: impl IntoIterator<Item = (f64, f64)>,
+        colour: RGBColor,
+    ) -> DrawResult;
+
+    /// A thin (1 pixel) reference line from `from` to `to` in `colour`: a threshold, a
+    /// zero line. It has no legend entry.
+    ///
+    /// # Errors
+    /// The plotting library's message.
+    fn draw_reference_line(
+        &mut self,
+        from: (f64, f64),
+        to: (f64, f64),
+        colour: RGBColor,
+    ) -> DrawResult;
+}
+
+impl<'a, 'b: 'a, X, Y> Draw for Chart<'a, 'b, X, Y>
+where
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    fn draw_axes(&mut self, style: &Style, x_desc: &str, y_desc: &str) -> DrawResult {
+        let mut mesh = self.configure_mesh();
         mesh.x_desc(x_desc).y_desc(y_desc);
-        if let Some(colour) = self.light_lines {
+        if let Some(colour) = style.light_lines {
             mesh.light_line_style(colour);
         }
-        if let Some(size) = self.axis_desc_size {
+        if let Some(size) = style.axis_desc_size {
             mesh.axis_desc_style((FONT, size));
         }
-        if let Some(size) = self.label_size {
+        if let Some(size) = style.label_size {
             mesh.label_style((FONT, size));
         }
         mesh.draw().map_err(message)
     }
 
-    /// The legend of the labelled series of `chart`, at `position`, on a translucent white
-    /// box with a black border.
-    ///
-    /// # Errors
-    /// The plotting library's message.
-    pub fn legend<'a, 'b: 'a, X, Y>(
-        &self,
-        chart: &mut Chart<'a, 'b, X, Y>,
-        position: SeriesLabelPosition,
-    ) -> DrawResult
-    where
-        X: Ranged<ValueType = f64>,
-        Y: Ranged<ValueType = f64>,
-    {
-        let mut labels = chart.configure_series_labels();
+    fn draw_legend(&mut self, style: &Style, position: SeriesLabelPosition) -> DrawResult {
+        let mut labels = self.configure_series_labels();
         labels
             .position(position)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK);
-        if let Some(size) = self.legend_size {
+        if let Some(size) = style.legend_size {
             labels.label_font((FONT, size));
         }
         labels.draw().map_err(message)
     }
-}
 
-/// A data series: a line through `points` in `colour` ([`SERIES_WIDTH`] wide), with a
-/// legend entry when `label` is given.
-///
-/// # Errors
-/// The plotting library's message.
-pub fn series<X, Y>(
-    chart: &mut Chart<'_, '_, X, Y>,
-    points: impl IntoIterator<Item = (f64, f64)>,
-    colour: RGBColor,
-    label: Option<&str>,
-) -> DrawResult
-where
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
-    let style = colour.stroke_width(SERIES_WIDTH);
-    let drawn = chart
-        .draw_series(LineSeries::new(points, style))
-        .map_err(message)?;
-    if let Some(label) = label {
-        drawn
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + LEGEND_SAMPLE, y)], style));
+    fn draw_line(
+        &mut self,
+        points: impl IntoIterator<Item = (f64, f64)>,
+        colour: RGBColor,
+        label: Option<&str>,
+    ) -> DrawResult {
+        let style = colour.stroke_width(SERIES_WIDTH);
+        let drawn = self
+            .draw_series(LineSeries::new(points, style))
+            .map_err(message)?;
+        if let Some(label) = label {
+            drawn.label(label).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + LEGEND_SAMPLE, y)], style)
+            });
+        }
+        Ok(())
     }
-    Ok(())
-}
 
-/// Filled dots of [`DOT_RADIUS`] at `points`, in `colour`.
-///
-/// # Errors
-/// The plotting library's message.
-pub fn dots<X, Y>(
-    chart: &mut Chart<'_, '_, X, Y>,
-    points: impl IntoIterator<Item = (f64, f64)>,
-    colour: RGBColor,
-) -> DrawResult
-where
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
-    chart
-        .draw_series(
-            points
-                .into_iter()
-                .map(|p| Circle::new(p, DOT_RADIUS, colour.filled())),
-        )
-        .map_err(message)?;
-    Ok(())
-}
+    fn draw_dots(
+        &mut self,
+        points: impl IntoIterator<Item = (f64, f64)>,
+        colour: RGBColor,
+    ) -> DrawResult {
+        let dots = points
+            .into_iter()
+            .map(|p| Circle::new(p, DOT_RADIUS, colour.filled()));
+        self.draw_series(dots).map(drop).map_err(message)
+    }
 
-/// A thin (1 pixel) reference line from `from` to `to` in `colour`: a threshold, a zero
-/// line. It has no legend entry.
-///
-/// # Errors
-/// The plotting library's message.
-pub fn reference_line<X, Y>(
-    chart: &mut Chart<'_, '_, X, Y>,
-    from: (f64, f64),
-    to: (f64, f64),
-    colour: RGBColor,
-) -> DrawResult
-where
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
-    chart
-        .draw_series(LineSeries::new([from, to], colour.stroke_width(1)))
-        .map_err(message)?;
-    Ok(())
+    fn draw_reference_line(
+        &mut self,
+        from: (f64, f64),
+        to: (f64, f64),
+        colour: RGBColor,
+    ) -> DrawResult {
+        let line = LineSeries::new([from, to], colour.stroke_width(1));
+        self.draw_series(line).map(drop).map_err(message)
+    }
 }
 
 #[cfg(test)]
@@ -266,17 +265,12 @@ mod tests {
     fn a_figure_with_every_element() {
         let text = svg((400, 300), |root| {
             let mut chart = STYLE.chart(root, "title <t>", 0f64..1.0, (1e-3..1.0).log_scale())?;
-            STYLE.axes(&mut chart, "x (-)", "y (-)")?;
-            series(
-                &mut chart,
-                [(0.0, 1e-3), (1.0, 0.5)],
-                colour(0),
-                Some("first"),
-            )?;
-            series(&mut chart, [(0.0, 0.1), (1.0, 0.1)], colour(1), None)?;
-            dots(&mut chart, [(0.5, 0.01)], colour(2))?;
-            reference_line(&mut chart, (0.2, 1e-3), (0.2, 1.0), RGBColor(170, 0, 0))?;
-            STYLE.legend(&mut chart, SeriesLabelPosition::UpperRight)
+            chart.draw_axes(&STYLE, "x (-)", "y (-)")?;
+            chart.draw_line([(0.0, 1e-3), (1.0, 0.5)], colour(0), Some("first"))?;
+            chart.draw_line([(0.0, 0.1), (1.0, 0.1)], colour(1), None)?;
+            chart.draw_dots([(0.5, 0.01)], colour(2))?;
+            chart.draw_reference_line((0.2, 1e-3), (0.2, 1.0), RGBColor(170, 0, 0))?;
+            chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)
         })
         .unwrap();
         assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));

@@ -47,6 +47,12 @@ impl Counterpart {
     }
 }
 
+/// Appends the three columns of a vector (`x`, `y`, `z` or `fnx`, `fny`, `fnz`, ...), each
+/// after a comma, in the format's number formatting.
+pub fn write_vector_columns(out: &mut String, v: [f64; 3]) {
+    let _ = write!(out, ",{:e},{:e},{:e}", v[0], v[1], v[2]);
+}
+
 /// One row of a node-level snapshot: a surface node in contact and the force on it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct NodeRow {
@@ -74,22 +80,11 @@ impl NodeRow {
     pub fn write_csv(&self, time: f64, out: &mut String) {
         let _ = write!(out, "{time:e},{},{},", self.node, self.body);
         self.counterpart.write_columns(out);
-        let (p, n, s) = (self.position, self.normal_force, self.tangential_force);
-        let _ = writeln!(
-            out,
-            ",{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
-            p[0],
-            p[1],
-            p[2],
-            self.depth,
-            n[0],
-            n[1],
-            n[2],
-            s[0],
-            s[1],
-            s[2],
-            u8::from(self.sliding)
-        );
+        write_vector_columns(out, self.position);
+        let _ = write!(out, ",{:e}", self.depth);
+        write_vector_columns(out, self.normal_force);
+        write_vector_columns(out, self.tangential_force);
+        let _ = writeln!(out, ",{}", u8::from(self.sliding));
     }
 }
 
@@ -130,12 +125,9 @@ impl PairRow {
     pub fn write_csv(&self, time: f64, out: &mut String) {
         let _ = write!(out, "{time:e},{},", self.body);
         self.counterpart.write_columns(out);
-        let (n, s) = (self.normal_force, self.tangential_force);
-        let _ = writeln!(
-            out,
-            ",{:e},{:e},{:e},{:e},{:e},{:e},{}",
-            n[0], n[1], n[2], s[0], s[1], s[2], self.nodes
-        );
+        write_vector_columns(out, self.normal_force);
+        write_vector_columns(out, self.tangential_force);
+        let _ = writeln!(out, ",{}", self.nodes);
     }
 }
 
@@ -542,6 +534,21 @@ pub fn parse_pairs<R: Read>(input: R, file: &str) -> Result<Vec<PairRow>, CsvErr
 mod tests {
     use super::*;
 
+    impl NodeRow {
+        fn at(node: u64, body: u32, counterpart: Counterpart) -> Self {
+            NodeRow {
+                node,
+                body,
+                counterpart,
+                position: [0.0; 3],
+                depth: 0.0,
+                normal_force: [0.0; 3],
+                tangential_force: [0.0; 3],
+                sliding: false,
+            }
+        }
+    }
+
     fn error_of(text: &str) -> String {
         match parse_nodes(text.as_bytes(), "n.csv") {
             Ok(s) => panic!("accepted: {s:?}"),
@@ -634,14 +641,12 @@ mod tests {
     #[test]
     fn rows_are_written_in_header_order() {
         let row = NodeRow {
-            node: 3,
-            body: 1,
-            counterpart: Counterpart::Body(0),
             position: [0.1, -0.2, 1.0 / 3.0],
-            depth: 1e-7,
             normal_force: [1.5, 0.0, -2.0],
             tangential_force: [0.0, 0.1, 0.0],
+            depth: 1e-7,
             sliding: true,
+            ..NodeRow::at(3, 1, Counterpart::Body(0))
         };
         let wall = NodeRow {
             counterpart: Counterpart::Wall(2),
@@ -665,11 +670,11 @@ mod tests {
         assert_eq!(back.rows, [row, wall, unknown]);
 
         let pair = PairRow {
-            body: 0,
-            counterpart: Counterpart::Body(1),
+            nodes: 4,
             normal_force: [-1.5, 0.0, 2.0],
             tangential_force: [0.0, -0.1, 0.0],
-            nodes: 4,
+            counterpart: Counterpart::Body(1),
+            body: 0,
         };
         let text = pairs_text(0.25, [pair]);
         assert_eq!(

@@ -720,6 +720,7 @@ pub const CONTACTS_HEADER: &str =
 /// Writes every contact of `clustering` as CSV ([`CONTACTS_HEADER`]; forces on `body`, N;
 /// position in m; both counterpart columns empty for an unknown counterpart), atomically.
 pub fn write_contacts(path: &std::path::Path, clustering: &Clustering) -> Result<(), MicroError> {
+    use fdem_core::snapshot::write_vector_columns;
     use std::fmt::Write as _;
     let mut text = String::from(CONTACTS_HEADER);
     text.push('\n');
@@ -730,21 +731,14 @@ pub fn write_contacts(path: &std::path::Path, clustering: &Clustering) -> Result
             ContactKind::Boundary => "boundary",
         };
         let _ = write!(text, "{t:e},{kind},{},", c.body);
-        // The counterpart columns as in the snapshot format.
+        // Counterpart and vector columns as in the snapshot format.
         c.other.write_columns(&mut text);
-        let (p, n, s) = (c.position, c.normal_force, c.tangential_force);
+        for v in [c.position, c.normal_force, c.tangential_force] {
+            write_vector_columns(&mut text, v);
+        }
         let _ = writeln!(
             text,
-            ",{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{},{}",
-            p[0],
-            p[1],
-            p[2],
-            n[0],
-            n[1],
-            n[2],
-            s[0],
-            s[1],
-            s[2],
+            ",{:e},{:e},{},{}",
             c.normal_magnitude(),
             c.tangential_magnitude(),
             c.nodes,

@@ -4,7 +4,9 @@
 use crate::MicroError;
 use crate::snapshot::write_atomically;
 use crate::stats::{BINS, Histogram, STRONG_RATIO, WEAK_RATIO};
-use fdem_core::plot::{self as figure, IntoLogRange, RGBColor, SeriesLabelPosition, Style, colour};
+use fdem_core::plot::{
+    self as figure, Draw, IntoLogRange, RGBColor, SeriesLabelPosition, Style, colour,
+};
 use std::path::Path;
 
 /// One curve of the plot.
@@ -59,20 +61,20 @@ pub fn plot_distributions(path: &Path, series: &[Series<'_>]) -> Result<(), Micr
             0f64..x_max,
             0f64..1.1 * y_max,
         )?;
-        STYLE.axes(&mut chart, "F_n / mean(F_n)", "probability density")?;
+        chart.draw_axes(&STYLE, "F_n / mean(F_n)", "probability density")?;
         for (i, s) in series.iter().enumerate() {
             let h = s.histogram;
             let steps = (0..h.density.len()).flat_map(|k| {
                 let x0 = k as f64 * h.bin_width;
                 [(x0, h.density[k]), (x0 + h.bin_width, h.density[k])]
             });
-            figure::series(&mut chart, steps, colour(i), Some(s.label))?;
+            chart.draw_line(steps, colour(i), Some(s.label))?;
         }
         for threshold in [WEAK_RATIO, STRONG_RATIO] {
             let (from, to) = ((threshold, 0.0), (threshold, 1.1 * y_max));
-            figure::reference_line(&mut chart, from, to, THRESHOLD)?;
+            chart.draw_reference_line(from, to, THRESHOLD)?;
         }
-        STYLE.legend(&mut chart, SeriesLabelPosition::UpperRight)?;
+        chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)?;
 
         // Logarithmic density: bin centres, empty bins left out.
         let mut chart = STYLE.chart(
@@ -81,21 +83,21 @@ pub fn plot_distributions(path: &Path, series: &[Series<'_>]) -> Result<(), Micr
             0f64..x_max,
             (log_min..log_max).log_scale(),
         )?;
-        STYLE.axes(&mut chart, "F_n / mean(F_n)", "probability density (log)")?;
+        chart.draw_axes(&STYLE, "F_n / mean(F_n)", "probability density (log)")?;
         for (i, s) in series.iter().enumerate() {
             let h = s.histogram;
             let points: Vec<(f64, f64)> = (0..h.density.len())
                 .filter(|&k| h.density[k] > 0.0)
                 .map(|k| (h.centre(k), h.density[k]))
                 .collect();
-            figure::series(&mut chart, points.iter().copied(), colour(i), Some(s.label))?;
-            figure::dots(&mut chart, points.iter().copied(), colour(i))?;
+            chart.draw_line(points.iter().copied(), colour(i), Some(s.label))?;
+            chart.draw_dots(points.iter().copied(), colour(i))?;
         }
         for threshold in [WEAK_RATIO, STRONG_RATIO] {
             let (from, to) = ((threshold, log_min), (threshold, log_max));
-            figure::reference_line(&mut chart, from, to, THRESHOLD)?;
+            chart.draw_reference_line(from, to, THRESHOLD)?;
         }
-        STYLE.legend(&mut chart, SeriesLabelPosition::UpperRight)
+        chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)
     })
     .map_err(|message| MicroError::Plot {
         path: path.to_path_buf(),

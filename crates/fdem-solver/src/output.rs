@@ -220,10 +220,8 @@ pub fn contact_snapshot_text(
         _ => snapshot_counterpart(c),
     };
     let is_boundary = |b: u32| boundary.is_some_and(|bb| bb.body == b);
-    let nodes = contact
-        .model
-        .node_contacts()
-        .iter()
+    let node_contacts = contact.model.node_contacts().iter();
+    let nodes = node_contacts
         .filter(|c| !is_boundary(c.body))
         .map(|c| snapshot::NodeRow {
             node: c.node as u64,
@@ -236,18 +234,15 @@ pub fn contact_snapshot_text(
             sliding: c.sliding,
         });
     let nodes = snapshot::nodes_text(sim.time, nodes);
-    let pairs = contact
-        .model
-        .pair_sums()
-        .into_iter()
-        .filter(|p| !is_boundary(p.body))
-        .map(|p| snapshot::PairRow {
-            body: p.body,
-            counterpart: remap(p.counterpart),
-            normal_force: p.normal_force,
-            tangential_force: p.tangential_force,
-            nodes: p.nodes,
-        });
+    let mut pairs = contact.model.pair_sums();
+    pairs.retain(|p| !is_boundary(p.body));
+    let pairs = pairs.into_iter().map(|p| snapshot::PairRow {
+        body: p.body,
+        counterpart: remap(p.counterpart),
+        normal_force: p.normal_force,
+        tangential_force: p.tangential_force,
+        nodes: p.nodes,
+    });
     let pairs = snapshot::pairs_text(sim.time, pairs);
     Some((nodes, pairs))
 }

@@ -7,7 +7,7 @@
 //! so drawing never panics.
 
 use crate::CurvePoint;
-use fdem_core::plot::{self as figure, RGBColor, SeriesLabelPosition, Style, colour};
+use fdem_core::plot::{self as figure, Draw, RGBColor, SeriesLabelPosition, Style, colour};
 use std::path::{Path, PathBuf};
 
 /// One curve of a figure.
@@ -151,28 +151,28 @@ pub fn plot_curves(
     let (y0, y1) = axis_range(all().map(|p| p.1));
     let svg = figure::svg((800, 600), |root| {
         let mut chart = STYLE.chart(root, title, x0..x1, y0..y1)?;
-        STYLE.axes(&mut chart, AXIAL_STRAIN_LABEL, plot.y_label())?;
+        chart.draw_axes(&STYLE, AXIAL_STRAIN_LABEL, plot.y_label())?;
         if plot == CurvePlot::VolumetricStrain {
-            figure::reference_line(&mut chart, (x0, 0.0), (x1, 0.0), ZERO_LINE)?;
+            chart.draw_reference_line((x0, 0.0), (x1, 0.0), ZERO_LINE)?;
         }
         for (i, (s, segs)) in series.iter().zip(&lines).enumerate() {
             let colour = colour(i);
             // The first (possibly empty) line carries the legend entry.
             let first = segs.first().cloned().unwrap_or_default();
-            figure::series(&mut chart, first, colour, Some(s.label))?;
+            chart.draw_line(first, colour, Some(s.label))?;
             for seg in segs.iter().skip(1) {
-                figure::series(&mut chart, seg.iter().copied(), colour, None)?;
+                chart.draw_line(seg.iter().copied(), colour, None)?;
             }
             // Isolated or coincident points would be invisible as lines.
             let dots = segs.iter().filter(|seg| seg.iter().all(|&p| p == seg[0]));
-            figure::dots(&mut chart, dots.map(|seg| seg[0]), colour)?;
+            chart.draw_dots(dots.map(|seg| seg[0]), colour)?;
         }
         if series.len() > 1 {
             let position = match plot {
                 CurvePlot::StressRatio => SeriesLabelPosition::LowerRight,
                 CurvePlot::VolumetricStrain => SeriesLabelPosition::UpperRight,
             };
-            STYLE.legend(&mut chart, position)?;
+            chart.draw_legend(&STYLE, position)?;
         }
         Ok(())
     })
