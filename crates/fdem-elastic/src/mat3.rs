@@ -10,27 +10,8 @@ pub type Mat3 = [[f64; 3]; 3];
 /// The 3x3 identity.
 pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
-/// `a - b` for vectors.
-#[inline(always)]
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// `a . b`.
-#[inline(always)]
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// `a x b`.
-#[inline(always)]
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
+// The vector helpers are the project's one definition, in `fdem-core`.
+pub(crate) use fdem_core::geometry::{cross, dot, sub};
 
 /// `m += a (x) b` (outer product, `m[i][j] += a[i] b[j]`).
 #[inline(always)]

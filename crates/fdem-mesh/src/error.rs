@@ -103,7 +103,7 @@ pub enum MeshError {
     /// A file could not be created, written or renamed.
     #[error("could not write {path}: {source}; check that the directory exists and is writable")]
     Io {
-        /// The file (or temporary file) being written.
+        /// The file being written (its final path).
         path: PathBuf,
         /// The underlying I/O error.
         #[source]

@@ -63,10 +63,13 @@
 
 mod assembly;
 mod error;
-pub mod geometry;
 mod mesh;
 mod sphere;
 pub mod vtu;
+
+/// Small geometric formulas on `[f64; 3]` points (the project's one definition, in
+/// `fdem-core`), used by the mesh code and re-exported here for its users.
+pub use fdem_core::geometry;
 
 pub use assembly::{BodyRange, MeshAssembly, Placement, ROTATION_NORM_TOLERANCE};
 pub use error::MeshError;

@@ -4,15 +4,14 @@
 //! `header_type="UInt64"`, inline base64 binary data (no appended data, no compression).
 //! Points and fields are `Float64`, connectivity and offsets `UInt64`, cell types `UInt8`.
 //!
-//! Every file is first written to a hidden temporary file in the same directory
-//! (`.<name>.tmp-<pid>-<serial>`) and renamed to its final name when complete, so a reader never sees
-//! a half-written file and an interrupted run leaves no truncated output under the final
-//! name.
+//! Every file is first written to a temporary file in the same directory (`NAME.part`, the
+//! project's convention: `fdem_core::fs`) and renamed to its final name when complete, so a
+//! reader never sees a half-written file and an interrupted run leaves no truncated output
+//! under the final name.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use fdem_core::fs::AtomicFile;
+use std::io::Write;
+use std::path::Path;
 
 use vtkio::model::{
     Attribute, Attributes, ByteOrder, CellType, Cells, DataArray, DataSet, ElementType, IOBuffer,
@@ -251,43 +250,24 @@ fn xml_escape(s: &str) -> String {
     out
 }
 
-/// Runs `body` on a buffered writer to a temporary file next to `path`, then renames the
-/// temporary file to `path`. The temporary file is removed on any error.
+/// Runs `body` on a buffered writer to the temporary of `path`, then renames it to `path`.
+/// The temporary file is removed on any error.
 fn write_atomically(
     path: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> Result<(), MeshError>,
+    body: impl FnOnce(&mut AtomicFile) -> Result<(), MeshError>,
 ) -> Result<(), MeshError> {
-    let name = path.file_name().ok_or_else(|| MeshError::NoFileName {
-        path: path.to_path_buf(),
-    })?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    // Process id plus a per-process counter: concurrent writers never share a temporary.
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let serial = COUNTER.fetch_add(1, Ordering::Relaxed);
-    tmp_name.push(format!(".tmp-{}-{serial}", std::process::id()));
-    let tmp: PathBuf = path.with_file_name(tmp_name);
-    let io_err = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| MeshError::Io { path: p, source }
-    };
-    let result = (|| {
-        let file = File::create(&tmp).map_err(io_err(&tmp))?;
-        let mut w = BufWriter::new(file);
-        body(&mut w)?;
-        let file = w.into_inner().map_err(|e| MeshError::Io {
-            path: tmp.clone(),
-            source: e.into_error(),
-        })?;
-        file.sync_all().map_err(io_err(&tmp))?;
-        drop(file);
-        std::fs::rename(&tmp, path).map_err(io_err(path))
-    })();
-    if result.is_err() {
-        // Best effort: the temporary file may not exist if creating it failed.
-        let _ = std::fs::remove_file(&tmp);
+    if path.file_name().is_none() {
+        return Err(MeshError::NoFileName {
+            path: path.to_path_buf(),
+        });
     }
-    result
+    let io_err = |source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = AtomicFile::create(path).map_err(io_err)?;
+    body(&mut file)?;
+    file.finish().map_err(io_err)
 }
 
 impl TetMesh {

@@ -40,7 +40,7 @@ fn no_temporary_files(dir: &Path) {
     for entry in std::fs::read_dir(dir).unwrap() {
         let name = entry.unwrap().file_name();
         assert!(
-            !name.to_string_lossy().contains(".tmp-"),
+            !name.to_string_lossy().ends_with(".part"),
             "temporary file {name:?} left behind"
         );
     }

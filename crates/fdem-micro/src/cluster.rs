@@ -813,37 +813,30 @@ pub const CONTACTS_HEADER: &str =
 /// Writes every contact of `clustering` as CSV ([`CONTACTS_HEADER`]; forces on `body`, N;
 /// position in m; both counterpart columns empty for an unknown counterpart), atomically.
 pub fn write_contacts(path: &std::path::Path, clustering: &Clustering) -> Result<(), MicroError> {
+    use fdem_core::snapshot::write_vector_columns;
+    use std::fmt::Write as _;
     let mut text = String::from(CONTACTS_HEADER);
     text.push('\n');
     let t = clustering.time;
     for c in &clustering.contacts {
-        let (b, w) = match c.other {
-            Counterpart::Body(b) => (b.to_string(), String::new()),
-            Counterpart::Wall(w) => (String::new(), w.to_string()),
-            Counterpart::Unknown => (String::new(), String::new()),
-        };
         let kind = match c.kind {
             ContactKind::Particle => "particle",
             ContactKind::Boundary => "boundary",
         };
-        let (p, n, s) = (c.position, c.normal_force, c.tangential_force);
-        text.push_str(&format!(
-            "{t:e},{kind},{},{b},{w},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{},{}\n",
-            c.body,
-            p[0],
-            p[1],
-            p[2],
-            n[0],
-            n[1],
-            n[2],
-            s[0],
-            s[1],
-            s[2],
+        let _ = write!(text, "{t:e},{kind},{},", c.body);
+        // Counterpart and vector columns as in the snapshot format.
+        c.other.write_columns(&mut text);
+        for v in [c.position, c.normal_force, c.tangential_force] {
+            write_vector_columns(&mut text, v);
+        }
+        let _ = writeln!(
+            text,
+            ",{:e},{:e},{},{}",
             c.normal_magnitude(),
             c.tangential_magnitude(),
             c.nodes,
             c.clusters
-        ));
+        );
     }
     crate::snapshot::write_atomically(path, text.as_bytes())
 }

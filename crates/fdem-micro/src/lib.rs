@@ -5,10 +5,12 @@
 //! statistics, as the paper does at the peak of the triaxial test.
 //!
 //! # What this crate owns
-//! - **The snapshot format** ([`snapshot`]): reading and writing node-level snapshots
+//! - **Reading and writing snapshots** ([`snapshot`]): node-level snapshots
 //!   (`contacts/nodes_NNNNNN.csv`, the format `fdem run --contacts` writes, usable by any
 //!   other code: docs/MICRO.md) and per body-pair ground truth (`pairs_NNNNNN.csv`), with
-//!   errors that name file, line and column.
+//!   errors that name file, line and column. The format itself (headers, rows, the
+//!   header-driven reader) is defined once in `fdem-core`, shared with the solver that
+//!   writes it.
 //! - **Clustering** ([`cluster()`]): per particle DBSCAN ([`dbscan()`]) over the nodes
 //!   that carry a normal force, with a neighbourhood radius tied to the local node
 //!   spacing, and pairing of clusters into contacts (both sides of a body pair merged;
@@ -24,7 +26,8 @@
 //!   known answer for tests and benchmarks ([`synthetic`]).
 //!
 //! # What it does not own
-//! It reads snapshots, never solver state: it depends on no other fdem crate, and knows
+//! It reads snapshots, never solver state: it depends on no other fdem crate but
+//! `fdem-core` (the snapshot format, vector helpers, atomic files, plot style), and knows
 //! nothing of meshes, contact detection or time integration. Running a scene (with
 //! `--contacts`) belongs to `fdem-solver`, argument parsing and printing to `fdem-cli`.
 //!

@@ -4,7 +4,9 @@
 use crate::MicroError;
 use crate::snapshot::write_atomically;
 use crate::stats::{BINS, Histogram, STRONG_RATIO, WEAK_RATIO};
-use plotters::prelude::*;
+use fdem_core::plot::{
+    self as figure, Draw, IntoLogRange, RGBColor, SeriesLabelPosition, Style, colour,
+};
 use std::path::Path;
 
 /// One curve of the plot.
@@ -16,32 +18,23 @@ pub struct Series<'a> {
     pub histogram: &'a Histogram,
 }
 
-/// Line colours, cycled (a colour-blind-safe qualitative palette).
-const COLOURS: [RGBColor; 8] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(0, 0, 0),
-    RGBColor(240, 228, 66),
-];
+/// Layout of both panels.
+const STYLE: Style = Style {
+    caption_size: 20,
+    margin: 15,
+    x_label_area: 45,
+    y_label_area: 65,
+    light_lines: None,
+    axis_desc_size: None,
+    label_size: None,
+    legend_size: None,
+};
 
 /// Colour of the vertical lines at the weak and strong thresholds.
 const THRESHOLD: RGBColor = RGBColor(170, 0, 0);
 
-fn plot_error(path: &Path) -> impl Fn(String) -> MicroError + '_ {
-    move |message| MicroError::Plot {
-        path: path.to_path_buf(),
-        message,
-    }
-}
-
 /// Draws the distributions into an SVG file at `path` (written atomically).
 pub fn plot_distributions(path: &Path, series: &[Series<'_>]) -> Result<(), MicroError> {
-    let err = plot_error(path);
-    let mut svg = String::new();
     let x_max = BINS as f64 * crate::stats::BIN_WIDTH;
     let densities = || {
         series
@@ -59,109 +52,56 @@ pub fn plot_distributions(path: &Path, series: &[Series<'_>]) -> Result<(), Micr
         log_max / 1e3
     }
     .min(log_max / 100.0); // at least two decades, so that the axis has labels
-    {
-        let root = SVGBackend::with_string(&mut svg, (1200, 500)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    let svg = figure::svg((1200, 500), |root| {
         let (left, right) = root.split_horizontally(600);
         // Linear density, step outline per bin.
-        let mut chart = ChartBuilder::on(&left)
-            .caption(
-                "Normal contact forces (red: weak < 0.2, strong > 4)",
-                ("sans-serif", 20),
-            )
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(65)
-            .build_cartesian_2d(0f64..x_max, 0f64..1.1 * y_max)
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("F_n / mean(F_n)")
-            .y_desc("probability density")
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
+        let mut chart = STYLE.chart(
+            &left,
+            "Normal contact forces (red: weak < 0.2, strong > 4)",
+            0f64..x_max,
+            0f64..1.1 * y_max,
+        )?;
+        chart.draw_axes(&STYLE, "F_n / mean(F_n)", "probability density")?;
         for (i, s) in series.iter().enumerate() {
-            let colour = COLOURS[i % COLOURS.len()];
             let h = s.histogram;
             let steps = (0..h.density.len()).flat_map(|k| {
                 let x0 = k as f64 * h.bin_width;
                 [(x0, h.density[k]), (x0 + h.bin_width, h.density[k])]
             });
-            chart
-                .draw_series(LineSeries::new(steps, colour.stroke_width(2)))
-                .map_err(|e| err(e.to_string()))?
-                .label(s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
+            chart.draw_line(steps, colour(i), Some(s.label))?;
         }
         for threshold in [WEAK_RATIO, STRONG_RATIO] {
-            chart
-                .draw_series(LineSeries::new(
-                    [(threshold, 0.0), (threshold, 1.1 * y_max)],
-                    THRESHOLD.stroke_width(1),
-                ))
-                .map_err(|e| err(e.to_string()))?;
+            let (from, to) = ((threshold, 0.0), (threshold, 1.1 * y_max));
+            chart.draw_reference_line(from, to, THRESHOLD)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
+        chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)?;
 
         // Logarithmic density: bin centres, empty bins left out.
-        let mut chart = ChartBuilder::on(&right)
-            .caption("Normal contact forces (log scale)", ("sans-serif", 20))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(65)
-            .build_cartesian_2d(0f64..x_max, (log_min..log_max).log_scale())
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("F_n / mean(F_n)")
-            .y_desc("probability density (log)")
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
+        let mut chart = STYLE.chart(
+            &right,
+            "Normal contact forces (log scale)",
+            0f64..x_max,
+            (log_min..log_max).log_scale(),
+        )?;
+        chart.draw_axes(&STYLE, "F_n / mean(F_n)", "probability density (log)")?;
         for (i, s) in series.iter().enumerate() {
-            let colour = COLOURS[i % COLOURS.len()];
             let h = s.histogram;
             let points: Vec<(f64, f64)> = (0..h.density.len())
                 .filter(|&k| h.density[k] > 0.0)
                 .map(|k| (h.centre(k), h.density[k]))
                 .collect();
-            chart
-                .draw_series(LineSeries::new(
-                    points.iter().copied(),
-                    colour.stroke_width(2),
-                ))
-                .map_err(|e| err(e.to_string()))?
-                .label(s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                });
-            chart
-                .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                .map_err(|e| err(e.to_string()))?;
+            chart.draw_line(points.iter().copied(), colour(i), Some(s.label))?;
+            chart.draw_dots(points.iter().copied(), colour(i))?;
         }
         for threshold in [WEAK_RATIO, STRONG_RATIO] {
-            chart
-                .draw_series(LineSeries::new(
-                    [(threshold, log_min), (threshold, log_max)],
-                    THRESHOLD.stroke_width(1),
-                ))
-                .map_err(|e| err(e.to_string()))?;
+            let (from, to) = ((threshold, log_min), (threshold, log_max));
+            chart.draw_reference_line(from, to, THRESHOLD)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
+        chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)
+    })
+    .map_err(|message| MicroError::Plot {
+        path: path.to_path_buf(),
+        message,
+    })?;
     write_atomically(path, svg.as_bytes())
 }

@@ -1,67 +1,59 @@
 //! Run outputs: CSV series, the JSON summary and VTU frames, each written to a temporary
-//! name and renamed into place when complete.
+//! name (`NAME.part`) and renamed into place when complete (`fdem_core::fs`).
 
 use crate::SolverError;
 use crate::engine::{EnergyReport, Simulation};
+use fdem_core::fs::AtomicFile;
+use fdem_core::snapshot;
 use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// A CSV file written under `NAME.part` and renamed to `NAME` by [`CsvSeries::finish`].
+/// A CSV file written under `NAME.part` and renamed to `NAME` by [`CsvSeries::finish`];
+/// dropped unfinished, it leaves no file.
 pub struct CsvSeries {
-    writer: BufWriter<File>,
-    partial: PathBuf,
-    path: PathBuf,
+    file: AtomicFile,
 }
 
 impl CsvSeries {
     /// Creates `dir/name.part` and writes the header row.
     pub fn create(dir: &Path, name: &str, header: &str) -> Result<Self, SolverError> {
         let path = dir.join(name);
-        let partial = dir.join(format!("{name}.part"));
-        let file = File::create(&partial).map_err(|e| SolverError::io("creating", &partial, e))?;
-        let mut series = CsvSeries {
-            writer: BufWriter::new(file),
-            partial,
-            path,
-        };
+        let file = AtomicFile::create(&path).map_err(|e| SolverError::io("creating", &path, e))?;
+        let mut series = CsvSeries { file };
         series.row(header)?;
         Ok(series)
     }
 
     /// Appends one row (without the newline).
     pub fn row(&mut self, line: &str) -> Result<(), SolverError> {
-        writeln!(self.writer, "{line}").map_err(|e| SolverError::io("writing", &self.partial, e))
+        writeln!(self.file, "{line}").map_err(|e| SolverError::io("writing", self.file.path(), e))
     }
 
     /// Flushes and renames the file into place.
-    pub fn finish(mut self) -> Result<(), SolverError> {
-        self.writer
-            .flush()
-            .map_err(|e| SolverError::io("writing", &self.partial, e))?;
-        std::fs::rename(&self.partial, &self.path)
-            .map_err(|e| SolverError::io("renaming", &self.partial, e))
+    pub fn finish(self) -> Result<(), SolverError> {
+        let path = self.file.path().to_path_buf();
+        self.file
+            .finish()
+            .map_err(|e| SolverError::io("writing", path, e))
     }
 }
 
 /// Writes `text` to `path` through a temporary file and a rename.
 pub fn write_atomically(path: &Path, text: &str) -> Result<(), SolverError> {
-    let partial = path.with_extension("part");
-    std::fs::write(&partial, text).map_err(|e| SolverError::io("writing", &partial, e))?;
-    std::fs::rename(&partial, path).map_err(|e| SolverError::io("renaming", &partial, e))
+    fdem_core::fs::write_atomically(path, text).map_err(|e| SolverError::io("writing", path, e))
 }
 
 /// Header of `energy.csv`.
 pub const ENERGY_HEADER: &str = "time,kinetic,strain,external_work,dissipated,balance_error,contact,damping_dissipated,friction_dissipated";
 /// Header of `walls.csv`.
 pub const WALLS_HEADER: &str = "time,wall,fx,fy,fz";
-/// Header of the node-level contact snapshots `contacts/nodes_NNNNNN.csv`.
-pub const NODE_CONTACTS_HEADER: &str =
-    "time,node,body,other_body,other_wall,x,y,z,depth,fnx,fny,fnz,ftx,fty,ftz,sliding";
-/// Header of the pair-level contact snapshots `contacts/pairs_NNNNNN.csv`.
-pub const PAIR_CONTACTS_HEADER: &str =
-    "time,body,other_body,other_wall,fnx,fny,fnz,ftx,fty,ftz,nodes";
+/// Header of the node-level contact snapshots `contacts/nodes_NNNNNN.csv` (the shared
+/// format of `fdem_core::snapshot`).
+pub use fdem_core::snapshot::NODES_HEADER as NODE_CONTACTS_HEADER;
+/// Header of the pair-level contact snapshots `contacts/pairs_NNNNNN.csv` (the shared
+/// format of `fdem_core::snapshot`).
+pub use fdem_core::snapshot::PAIRS_HEADER as PAIR_CONTACTS_HEADER;
 /// Header of `bodies.csv`.
 pub const BODIES_HEADER: &str = "time,body,x,y,z,vx,vy,vz,wx,wy,wz";
 
@@ -207,10 +199,10 @@ pub fn wall_rows(sim: &Simulation, series: &mut CsvSeries) -> Result<(), SolverE
     Ok(())
 }
 
-fn counterpart_columns(c: fdem_contact::Counterpart) -> (String, String) {
+fn snapshot_counterpart(c: fdem_contact::Counterpart) -> snapshot::Counterpart {
     match c {
-        fdem_contact::Counterpart::Body(b) => (b.to_string(), String::new()),
-        fdem_contact::Counterpart::Wall(w) => (String::new(), w.to_string()),
+        fdem_contact::Counterpart::Body(b) => snapshot::Counterpart::Body(b),
+        fdem_contact::Counterpart::Wall(w) => snapshot::Counterpart::Wall(w),
     }
 }
 
@@ -233,52 +225,37 @@ pub fn contact_snapshot_text(
     boundary: Option<BoundaryBody>,
 ) -> Option<(String, String)> {
     let contact = sim.contact()?;
-    let t = sim.time();
     let remap = |c: fdem_contact::Counterpart| match (c, boundary) {
         (fdem_contact::Counterpart::Body(b), Some(bb)) if b == bb.body => {
-            fdem_contact::Counterpart::Wall(bb.as_wall)
+            snapshot::Counterpart::Wall(bb.as_wall)
         }
-        _ => c,
+        _ => snapshot_counterpart(c),
     };
     let is_boundary = |b: u32| boundary.is_some_and(|bb| bb.body == b);
-    let mut nodes = String::from(NODE_CONTACTS_HEADER);
-    nodes.push('\n');
-    for c in contact.model().node_contacts() {
-        if is_boundary(c.body) {
-            continue;
-        }
-        let (body, wall) = counterpart_columns(remap(c.counterpart));
-        let (p, n, s) = (c.position, c.normal_force, c.tangential_force);
-        nodes.push_str(&format!(
-            "{t:e},{},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
-            c.node,
-            c.body,
-            p[0],
-            p[1],
-            p[2],
-            c.depth,
-            n[0],
-            n[1],
-            n[2],
-            s[0],
-            s[1],
-            s[2],
-            u8::from(c.sliding)
-        ));
-    }
-    let mut pairs = String::from(PAIR_CONTACTS_HEADER);
-    pairs.push('\n');
-    for p in contact.model().pair_sums() {
-        if is_boundary(p.body) {
-            continue;
-        }
-        let (body, wall) = counterpart_columns(remap(p.counterpart));
-        let (n, s) = (p.normal_force, p.tangential_force);
-        pairs.push_str(&format!(
-            "{t:e},{},{body},{wall},{:e},{:e},{:e},{:e},{:e},{:e},{}\n",
-            p.body, n[0], n[1], n[2], s[0], s[1], s[2], p.nodes
-        ));
-    }
+    let node_contacts = contact.model().node_contacts().iter();
+    let nodes = node_contacts
+        .filter(|c| !is_boundary(c.body))
+        .map(|c| snapshot::NodeRow {
+            node: c.node as u64,
+            body: c.body,
+            counterpart: remap(c.counterpart),
+            position: c.position,
+            depth: c.depth,
+            normal_force: c.normal_force,
+            tangential_force: c.tangential_force,
+            sliding: c.sliding,
+        });
+    let nodes = snapshot::nodes_text(sim.time(), nodes);
+    let mut pairs = contact.model().pair_sums();
+    pairs.retain(|p| !is_boundary(p.body));
+    let pairs = pairs.into_iter().map(|p| snapshot::PairRow {
+        body: p.body,
+        counterpart: remap(p.counterpart),
+        normal_force: p.normal_force,
+        tangential_force: p.tangential_force,
+        nodes: p.nodes,
+    });
+    let pairs = snapshot::pairs_text(sim.time(), pairs);
     Some((nodes, pairs))
 }
 

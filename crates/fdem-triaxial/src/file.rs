@@ -24,6 +24,7 @@ use crate::placement::PlacedParticle;
 use crate::prepare::{PreparationReport, PreparedSpecimen, Snapshot};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
+use fdem_core::fs::AtomicFile;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -103,13 +104,9 @@ impl PreparedSpecimen {
         let text = toml::to_string(&header).map_err(|e| {
             TriaxialError::file(path, format!("cannot write the header as TOML: {e}"))
         })?;
-        let mut part = path.as_os_str().to_owned();
-        part.push(".part");
-        let part = std::path::PathBuf::from(part);
-        let file =
-            std::fs::File::create(&part).map_err(|e| TriaxialError::io("creating", &part, e))?;
+        let file = AtomicFile::create(path).map_err(|e| TriaxialError::io("creating", path, e))?;
         let mut w = Checked {
-            inner: std::io::BufWriter::new(file),
+            inner: file,
             hash: Fnv::new(),
         };
         let s = &self.state;
@@ -149,15 +146,12 @@ impl PreparedSpecimen {
                 }
             }
             let sum = w.hash.0;
-            w.inner.write_all(&sum.to_le_bytes())?;
-            let file = w.inner.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()
+            w.inner.write_all(&sum.to_le_bytes())
         })();
-        if let Err(e) = result {
-            let _ = std::fs::remove_file(&part);
-            return Err(TriaxialError::io("writing", &part, e));
-        }
-        std::fs::rename(&part, path).map_err(|e| TriaxialError::io("renaming", &part, e))
+        // On an error the unfinished file is dropped, which removes the temporary.
+        result
+            .and_then(|()| w.inner.finish())
+            .map_err(|e| TriaxialError::io("writing", path, e))
     }
 
     /// Reads a specimen file written by [`PreparedSpecimen::save`], refusing a file of

@@ -26,32 +26,10 @@
 //! (a compressed sheet stores energy instead of wrinkling), which is acceptable because
 //! the confined membrane is pressed onto the particles.
 
+use fdem_core::geometry::{add, cross, dot, norm, scale, sub};
 use fdem_solver::{ForceContribution, NodeView, Powers, SolverError, StepBound};
 
 type V3 = [f64; 3];
-
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn scale(a: V3, s: f64) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn norm(a: V3) -> f64 {
-    dot(a, a).sqrt()
-}
 
 /// Everything that can refuse a membrane definition or a membrane mesh; each message is one
 /// line with what was wrong, the value and how to fix it.

@@ -1,13 +1,13 @@
 //! The shear-curve figures `eta.svg` and `eps_v.svg`: stress ratio and volumetric strain
 //! against axial strain (paper Figs 4-8 style), one or several runs overlaid.
 //!
-//! This module owns the drawing (plotters, SVG into a string) and the atomic write of
-//! the file; the numbers come from [`crate::CurvePoint`] rows. Non-finite points (and absurd ones,
+//! This module owns the content of the figures (the project's plot style and the atomic
+//! write of the file are `fdem_core`'s); the numbers come from [`crate::CurvePoint`] rows. Non-finite points (and absurd ones,
 //! beyond `1e150`) are skipped, the line broken there, and empty or constant data get a sensible range,
 //! so drawing never panics.
 
 use crate::CurvePoint;
-use plotters::prelude::*;
+use fdem_core::plot::{self as figure, Draw, RGBColor, SeriesLabelPosition, Style, colour};
 use std::path::{Path, PathBuf};
 
 /// One curve of a figure.
@@ -62,7 +62,7 @@ impl CurvePlot {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlotError {
-    /// Drawing failed (or the path names no file).
+    /// Drawing failed.
     #[error("plotting {}: {message}", path.display())]
     Draw {
         /// The figure's path.
@@ -73,26 +73,29 @@ pub enum PlotError {
     /// Writing or renaming the file failed.
     #[error("{action} {}: {source}", path.display())]
     Io {
-        /// What was being done (`writing`, `renaming`).
+        /// What was being done (`writing`).
         action: &'static str,
-        /// The file concerned (the temporary file for `writing`).
+        /// The figure's path.
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
     },
 }
 
-/// Line colours, cycled: the Okabe-Ito colour-blind-safe palette.
-const COLOURS: [RGBColor; 8] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(0, 0, 0),
-    RGBColor(240, 228, 66),
-];
+/// Layout of the figures.
+const STYLE: Style = Style {
+    caption_size: 22,
+    margin: 20,
+    x_label_area: 50,
+    y_label_area: 70,
+    light_lines: Some(RGBColor(235, 235, 235)),
+    axis_desc_size: Some(16),
+    label_size: Some(13),
+    legend_size: Some(14),
+};
+
+/// Colour of the zero line of the volumetric strain.
+const ZERO_LINE: RGBColor = RGBColor(96, 96, 96);
 
 /// Points with a coordinate larger in magnitude are skipped like non-finite ones (the
 /// axis arithmetic would overflow).
@@ -146,96 +149,38 @@ pub fn plot_curves(
     let all = || lines.iter().flatten().flatten();
     let (x0, x1) = axis_range(all().map(|p| p.0));
     let (y0, y1) = axis_range(all().map(|p| p.1));
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (800, 600)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 22))
-            .margin(20)
-            .x_label_area_size(50)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc(AXIAL_STRAIN_LABEL)
-            .y_desc(plot.y_label())
-            .light_line_style(RGBColor(235, 235, 235))
-            .axis_desc_style(("sans-serif", 16))
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
+    let svg = figure::svg((800, 600), |root| {
+        let mut chart = STYLE.chart(root, title, x0..x1, y0..y1)?;
+        chart.draw_axes(&STYLE, AXIAL_STRAIN_LABEL, plot.y_label())?;
         if plot == CurvePlot::VolumetricStrain {
-            let zero = [(x0, 0.0), (x1, 0.0)];
-            chart
-                .draw_series(LineSeries::new(zero, RGBColor(96, 96, 96).stroke_width(1)))
-                .map_err(|e| err(e.to_string()))?;
+            chart.draw_reference_line((x0, 0.0), (x1, 0.0), ZERO_LINE)?;
         }
         for (i, (s, segs)) in series.iter().zip(&lines).enumerate() {
-            let colour = COLOURS[i % COLOURS.len()];
-            let style = colour.stroke_width(2);
+            let colour = colour(i);
             // The first (possibly empty) line carries the legend entry.
             let first = segs.first().cloned().unwrap_or_default();
-            chart
-                .draw_series(LineSeries::new(first, style))
-                .map_err(|e| err(e.to_string()))?
-                .label(s.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+            chart.draw_line(first, colour, Some(s.label))?;
             for seg in segs.iter().skip(1) {
-                chart
-                    .draw_series(LineSeries::new(seg.iter().copied(), style))
-                    .map_err(|e| err(e.to_string()))?;
+                chart.draw_line(seg.iter().copied(), colour, None)?;
             }
             // Isolated or coincident points would be invisible as lines.
             let dots = segs.iter().filter(|seg| seg.iter().all(|&p| p == seg[0]));
-            chart
-                .draw_series(dots.map(|seg| Circle::new(seg[0], 3, colour.filled())))
-                .map_err(|e| err(e.to_string()))?;
+            chart.draw_dots(dots.map(|seg| seg[0]), colour)?;
         }
         if series.len() > 1 {
             let position = match plot {
                 CurvePlot::StressRatio => SeriesLabelPosition::LowerRight,
                 CurvePlot::VolumetricStrain => SeriesLabelPosition::UpperRight,
             };
-            chart
-                .configure_series_labels()
-                .position(position)
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()
-                .map_err(|e| err(e.to_string()))?;
+            chart.draw_legend(&STYLE, position)?;
         }
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    write_atomically(path, svg.as_bytes())
-}
-
-/// Writes `bytes` to a temporary file next to `path`, then renames it over `path`.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), PlotError> {
-    let Some(name) = path.file_name() else {
-        return Err(PlotError::Draw {
-            path: path.to_path_buf(),
-            message: "the path names no file".into(),
-        });
-    };
-    let mut partial = std::ffi::OsString::from(".");
-    partial.push(name);
-    partial.push(format!(".{}.part", std::process::id()));
-    let partial = path.with_file_name(partial);
-    let io = |action, path: &Path| {
-        let path = path.to_path_buf();
-        move |source| PlotError::Io {
-            action,
-            path,
-            source,
-        }
-    };
-    std::fs::write(&partial, bytes).map_err(io("writing", &partial))?;
-    std::fs::rename(&partial, path).map_err(|e| {
-        let _ = std::fs::remove_file(&partial);
-        io("renaming", &partial)(e)
+        Ok(())
+    })
+    .map_err(err)?;
+    fdem_core::fs::write_atomically(path, svg).map_err(|source| PlotError::Io {
+        action: "writing",
+        path: path.to_path_buf(),
+        source,
     })
 }
 

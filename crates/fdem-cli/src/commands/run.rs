@@ -1,6 +1,5 @@
 //! `fdem run SCENE.toml --out DIR`: run a scene file.
 
-use anyhow::Context;
 use fdem_solver::{Observer, RunOptions, RunPlan, Scene, run as run_scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -59,13 +58,7 @@ impl Observer for Progress {
 
 /// Loads, runs and reports.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
-    if let Some(threads) = args.threads {
-        anyhow::ensure!(threads > 0, "--threads must be at least 1");
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build_global()
-            .context("setting up the thread pool")?;
-    }
+    super::set_threads(args.threads)?;
     // `run_scene` builds (and so validates) everything before it creates any output.
     let scene = Scene::load(&args.scene)?;
     let interrupt = Arc::new(AtomicBool::new(false));

@@ -1,7 +1,7 @@
 //! `fdem specimen`: the paper's test catalogue and user specimens: counts, preparation by
 //! the dynamic method, and prepared-specimen files (docs/SPECIMENS.md).
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
     Counts, Observer, PRESETS, Phase, PreparationReport, PreparedSpecimen, Preset, SpecimenSpec,
@@ -313,13 +313,7 @@ fn summary_json(file: &std::path::Path, s: &PreparedSpecimen) -> anyhow::Result<
 
 /// Runs `fdem specimen`.
 pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
-    if let Some(threads) = args.threads {
-        anyhow::ensure!(threads > 0, "--threads must be at least 1");
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build_global()
-            .context("setting up the thread pool")?;
-    }
+    super::set_threads(args.threads)?;
     if args.list {
         return list(args.json);
     }

@@ -226,13 +226,7 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
 
 /// Prepares (or reuses), tests and reports.
 pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
-    if let Some(threads) = args.threads {
-        anyhow::ensure!(threads > 0, "--threads must be at least 1");
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build_global()
-            .context("setting up the thread pool")?;
-    }
+    super::set_threads(args.threads)?;
     if let Some(strain) = args.strain
         && !(strain > 0.0 && strain <= fdem_triaxial::MAX_TARGET_STRAIN)
     {

@@ -1,0 +1,52 @@
+//! # fdem-core: the small helpers every fdem crate shares, defined once
+//!
+//! The bottom layer of the workspace: it depends on no other fdem crate, and the crates
+//! above use it instead of keeping copies, so a convention (a rounding, a temporary file
+//! name, a column order, a colour) is the same everywhere.
+//!
+//! # What this crate owns
+//! - **Geometry** ([`geometry`]): `[f64; 3]` vector arithmetic and the triangle and
+//!   tetrahedron formulas (area vectors, signed volumes, dihedral angles), written out
+//!   in a fixed operation order so that every crate gets the same bits.
+//! - **Atomic file output** ([`fs`]): [`fs::write_atomically`] and the streaming
+//!   [`fs::AtomicFile`]; every file goes to `NAME.part` in its own directory and is renamed
+//!   when complete.
+//! - **The contact snapshot format** ([`snapshot`]): the node-level and pair-level CSV
+//!   files (docs/MICRO.md): headers, rows, their writer and the header-driven reader.
+//! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
+//!   for the SVG figures.
+//!
+//! # What it does not own
+//! No physics and no project types: no meshes (`fdem-mesh`), element kernels or their
+//! 3x3 matrices (`fdem-elastic`), contact detection (`fdem-contact`), node state or run
+//! outputs beyond the file mechanics (`fdem-solver`), no analysis of the snapshots
+//! (`fdem-micro`) and no figure's content (the crates that draw them). Errors are
+//! [`std::io::Error`], [`snapshot::CsvError`] or plotting messages; each crate maps them
+//! into its own error type.
+//!
+//! # Example
+//! ```
+//! use fdem_core::geometry::{cross, tet_signed_volume};
+//! use fdem_core::snapshot::{Counterpart, PairRow, pairs_text, parse_pairs};
+//!
+//! assert_eq!(cross([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]), [0.0, 0.0, 1.0]);
+//! let unit = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+//! assert_eq!(tet_signed_volume(unit[0], unit[1], unit[2], unit[3]), 1.0 / 6.0);
+//!
+//! let row = PairRow {
+//!     body: 0,
+//!     counterpart: Counterpart::Wall(1),
+//!     normal_force: [0.0, 0.0, 2.5],
+//!     tangential_force: [0.0; 3],
+//!     nodes: 3,
+//! };
+//! let text = pairs_text(0.5, [row]);
+//! assert_eq!(parse_pairs(text.as_bytes(), "<input>")?, [row]);
+//! # Ok::<(), fdem_core::snapshot::CsvError>(())
+//! ```
+#![warn(missing_docs)]
+
+pub mod fs;
+pub mod geometry;
+pub mod plot;
+pub mod snapshot;
