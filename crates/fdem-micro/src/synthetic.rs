@@ -15,7 +15,7 @@
 //! The ground truth is computed from the generated contact forces, not from the rows.
 
 use crate::snapshot::{Counterpart, NodeRow, PairRow, Snapshot};
-use crate::vec3::{add, norm, scale, sub};
+use crate::vec3::{add, cross, norm, scale, sub};
 
 /// Parameters of a synthetic snapshot.
 #[derive(Clone, Debug, PartialEq)]
@@ -101,13 +101,6 @@ fn tangents(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
         [1.0, 0.0, 0.0]
     } else {
         [0.0, 1.0, 0.0]
-    };
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
     };
     let t1 = cross(n, helper);
     let t1 = scale(t1, 1.0 / norm(t1));

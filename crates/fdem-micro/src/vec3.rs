@@ -1,3 +1,3 @@
 //! The 3-vector helpers: the project's one definition, in `fdem-core`.
 
-pub(crate) use fdem_core::geometry::{add, distance, norm, scale, sub};
+pub(crate) use fdem_core::geometry::{add, cross, distance, norm, scale, sub};

@@ -2,6 +2,7 @@
 //! summaries.
 
 use crate::NodeState;
+use fdem_core::geometry::cross;
 use std::ops::Range;
 
 /// What a body is, and so which parts of the engine move it.
@@ -102,14 +103,6 @@ impl Body {
             angular_momentum: l,
         }
     }
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 /// Solves the 3x3 system `a x = b` by Cramer's rule; `None` if `a` is singular.

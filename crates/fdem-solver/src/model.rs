@@ -214,7 +214,7 @@ impl ModelBuilder {
                 x[1] - placement.translation[1],
                 x[2] - placement.translation[2],
             ];
-            let u = crate::body::cross(motion.angular_velocity, r);
+            let u = fdem_core::geometry::cross(motion.angular_velocity, r);
             let v = motion.velocity;
             self.velocities
                 .push([v[0] + u[0], v[1] + u[1], v[2] + u[2]]);

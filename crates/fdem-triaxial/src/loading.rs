@@ -14,6 +14,7 @@
 use crate::membrane::{MembraneForces, MembraneMesh, MembraneSpec, membrane_mesh};
 use crate::{PreparedSpecimen, SpecimenSpec, TriaxialError};
 use fdem_contact::{Counterpart, Wall, WallShape};
+use fdem_core::geometry::{cross, sub};
 use fdem_solver::{
     BodyId, Constraint, ConstraintHandle, ContactSettings, ForceContribution, Guard, Handle,
     ModelBuilder, NodeView, Powers, Scene, SheetBody, Simulation, SimulationSection, SolverError,
@@ -228,13 +229,7 @@ impl PressurisedMembrane {
         self.scratch.resize(n, [0.0; 3]);
         for t in &self.triangles {
             let [a, b, c] = t.map(|i| x[i + first]);
-            let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-            let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-            let area = [
-                e1[1] * e2[2] - e1[2] * e2[1],
-                e1[2] * e2[0] - e1[0] * e2[2],
-                e1[0] * e2[1] - e1[1] * e2[0],
-            ];
+            let area = cross(sub(b, a), sub(c, a));
             for &i in t {
                 for (f, a) in self.scratch[i].iter_mut().zip(area) {
                     *f += p * a / 6.0;
