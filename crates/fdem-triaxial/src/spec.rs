@@ -11,7 +11,7 @@ use fdem_solver::toml_input::{
     check_positive, check_vector, fraction, fraction_opt, level, non_negative, positive,
     positive_opt, vector,
 };
-use fdem_solver::{ContactSection, MaterialSection};
+use fdem_solver::{ContactSection, Field, MaterialSection, Role};
 use serde::{Deserialize, Serialize};
 
 /// Tolerance on the sum of the mass fractions.
@@ -495,72 +495,43 @@ impl SpecimenSpec {
     /// The parameters as simulated (sizes x h; with exact scaling, every material and
     /// contact parameter times its factor from `ScaleLaw::exact(h)`; the contact margin,
     /// a particle length, always x h).
+    ///
+    /// The fields and their quantities are the ones the sections declare for scenes
+    /// (`visit_fields`), scaled by the rule of scene coarse graining
+    /// ([`Role::coarse_graining_factor`]); the specimen adds its own two: the gradation's
+    /// sizes (particle lengths) and the preparation friction (a parameter).
     pub fn simulated(&self) -> Result<Simulated, TriaxialError> {
-        let h = self.coarse_graining;
-        let law = ScaleLaw::exact(h).map_err(|e| self.rule("coarse_graining", e.to_string()))?;
-        let sizes = self
-            .gradation
-            .iter()
-            .map(|c| c.size * law.factor_of("length").unwrap_or(h))
-            .collect();
+        let law = ScaleLaw::exact(self.coarse_graining)
+            .map_err(|e| self.rule("coarse_graining", e.to_string()))?;
+        let mut sizes: Vec<f64> = self.gradation.iter().map(|c| c.size).collect();
         let mut material = self.material.clone();
         let mut contact = self.contact.clone();
         let mut preparation_friction = self.preparation.friction;
         let mut scaled = Vec::new();
-        for length in [contact.margin.as_mut(), contact.depth_limit.as_mut()]
-            .into_iter()
-            .flatten()
-        {
-            *length *= law.factor_of("length").unwrap_or(h);
-        }
-        if self.exact_scaling {
-            let MaterialSection {
-                density,
-                youngs_modulus,
-                poisson_ratio,
-            } = &mut material;
-            let ContactSection {
-                enabled: _,
-                normal_penalty,
-                penalty_ratio,
-                friction,
-                damping,
-                damping_ratio,
-                margin: _,
-                depth_limit: _,
-            } = &mut contact;
-            let fields: [(&str, &'static str, &mut f64); 9] = [
-                ("material.density", "density", density),
-                ("material.youngs_modulus", "youngs_modulus", youngs_modulus),
-                ("material.poisson_ratio", "poisson_ratio", poisson_ratio),
-                (
-                    "contact.normal_penalty",
-                    "penalty_stiffness",
-                    normal_penalty,
-                ),
-                ("contact.penalty_ratio", "ratio", penalty_ratio),
-                ("contact.friction", "friction", friction),
-                ("contact.damping", "damping", damping),
-                ("contact.damping_ratio", "ratio", damping_ratio),
-                (
-                    "preparation.friction",
-                    "friction",
-                    &mut preparation_friction,
-                ),
-            ];
-            for (key, quantity, value) in fields {
-                let factor = law.factor_of(quantity).ok_or_else(|| {
-                    self.rule(
-                        "exact_scaling",
-                        format!("internal error: quantity {quantity} is not catalogued"),
-                    )
-                })?;
-                if factor != 1.0 {
-                    *value *= factor;
-                    scaled.push((key.to_string(), quantity, factor));
+        let mut apply = |f: Field<'_>| {
+            let factor = f
+                .role
+                .coarse_graining_factor(&law, f.dimension, self.exact_scaling);
+            if factor != 1.0 {
+                *f.value *= factor;
+                if f.role == Role::Parameter {
+                    scaled.push((f.key, f.quantity, factor));
                 }
             }
+        };
+        for (i, size) in sizes.iter_mut().enumerate() {
+            let key = format!("gradation[{i}].size");
+            apply(Field::new(key, "length", Role::Particle, size));
         }
+        material.visit_fields("material.", &mut apply);
+        contact.visit_fields("contact.", &mut apply);
+        let key = "preparation.friction".to_string();
+        apply(Field::new(
+            key,
+            "friction",
+            Role::Parameter,
+            &mut preparation_friction,
+        ));
         Ok(Simulated {
             sizes,
             material,
@@ -870,6 +841,34 @@ mod tests {
             let e = spec.validate("code").unwrap_err().to_string();
             assert!(e.starts_with(&format!("code: {key}: ")), "{key}: {e}");
             assert!(e.contains(fragment), "{key}: {e}");
+        }
+    }
+
+    /// Sizes and contact lengths follow h; with exact scaling the parameters follow
+    /// Table 1 (only the penalty changes, and only parameters are listed as scaled).
+    #[test]
+    fn simulated_scales_sizes_lengths_and_with_exact_scaling_the_parameters() {
+        let mut spec = crate::quick_spec();
+        spec.coarse_graining = 2.0;
+        spec.contact.depth_limit = Some(0.003);
+        spec.preparation.friction = 0.1;
+        for exact in [false, true] {
+            spec.exact_scaling = exact;
+            let s = spec.simulated().unwrap();
+            assert_eq!(s.sizes, [0.075]);
+            assert_eq!(s.contact.margin, Some(0.008));
+            assert_eq!(s.contact.depth_limit, Some(0.006));
+            assert_eq!(s.material, spec.material);
+            assert_eq!(s.preparation_friction, 0.1);
+            let penalty = if exact { 2.25e10 } else { 4.5e10 };
+            assert_eq!(s.contact.normal_penalty, penalty);
+            let keys: Vec<&str> = s.scaled.iter().map(|(k, _, _)| k.as_str()).collect();
+            let expected: &[&str] = if exact {
+                &["contact.normal_penalty"]
+            } else {
+                &[]
+            };
+            assert_eq!(keys, expected);
         }
     }
 }
