@@ -130,6 +130,6 @@ pub use model::{
 pub use narrow::{
     BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance, project_to_edge,
 };
-pub use params::{ContactParams, NodeCoefficients, spring_dashpot_time_step};
+pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};
 pub use surface::ContactSurface;
 pub use wall::{Wall, WallShape};

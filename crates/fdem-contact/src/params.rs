@@ -13,7 +13,7 @@ pub struct ContactParams {
     /// Normal penalty per unit area `p_n` (N/m^3); a node's normal stiffness is
     /// `k_n = p_n A` with `A` its control area (eq 2). Finite and > 0.
     pub normal_penalty: f64,
-    /// Ratio `p_s / p_n` of the tangential to the normal penalty (eq 2). Finite and >= 0.
+    /// Ratio `p_s / p_n` of the tangential to the normal penalty (eq 2). Finite and > 0.
     pub penalty_ratio: f64,
     /// Coulomb friction coefficient `mu` (eq 1, `|F_s| <= mu F_n`). Finite and >= 0.
     pub friction: f64,
@@ -54,34 +54,81 @@ pub struct NodeCoefficients {
     pub friction: f64,
 }
 
+/// The range a parameter of the law must lie in.
+///
+/// Each field of [`ContactParams`] has one (the `ContactParams::*` constants below): they
+/// are the one definition of what the law accepts, used by [`ContactParams::validate`]
+/// and by the TOML schemas' range checks, which report the same rule with a line number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Requirement {
+    /// Finite and > 0.
+    Positive,
+    /// Finite and >= 0.
+    NonNegative,
+}
+
+impl Requirement {
+    /// Whether `value` satisfies the requirement.
+    pub fn holds(self, value: f64) -> bool {
+        value.is_finite()
+            && match self {
+                Requirement::Positive => value > 0.0,
+                Requirement::NonNegative => value >= 0.0,
+            }
+    }
+
+    /// The rule in words (`finite and > 0`).
+    pub fn describe(self) -> &'static str {
+        match self {
+            Requirement::Positive => "finite and > 0",
+            Requirement::NonNegative => "finite and >= 0",
+        }
+    }
+}
+
 impl ContactParams {
+    /// Range of [`ContactParams::normal_penalty`].
+    pub const NORMAL_PENALTY: Requirement = Requirement::Positive;
+    /// Range of [`ContactParams::penalty_ratio`].
+    pub const PENALTY_RATIO: Requirement = Requirement::Positive;
+    /// Range of [`ContactParams::friction`].
+    pub const FRICTION: Requirement = Requirement::NonNegative;
+    /// Range of [`ContactParams::damping`].
+    pub const DAMPING: Requirement = Requirement::NonNegative;
+    /// Range of [`ContactParams::damping_ratio`].
+    pub const DAMPING_RATIO: Requirement = Requirement::NonNegative;
+
+    /// Every field as `(name, value, range)`, in declaration order.
+    pub fn fields(&self) -> [(&'static str, f64, Requirement); 5] {
+        let ContactParams {
+            normal_penalty,
+            penalty_ratio,
+            friction,
+            damping,
+            damping_ratio,
+        } = *self;
+        [
+            ("normal_penalty", normal_penalty, Self::NORMAL_PENALTY),
+            ("penalty_ratio", penalty_ratio, Self::PENALTY_RATIO),
+            ("friction", friction, Self::FRICTION),
+            ("damping", damping, Self::DAMPING),
+            ("damping_ratio", damping_ratio, Self::DAMPING_RATIO),
+        ]
+    }
+
     /// Checks every field and names the first invalid one.
     ///
     /// # Errors
     /// [`ContactError::InvalidParameter`] naming the field.
     pub fn validate(&self) -> Result<(), ContactError> {
-        let check = |field: &'static str, value: f64, strict: bool| {
-            let ok = value.is_finite() && if strict { value > 0.0 } else { value >= 0.0 };
-            if ok {
-                Ok(())
-            } else {
-                Err(ContactError::InvalidParameter {
-                    field,
-                    value,
-                    requirement: if strict {
-                        "finite and > 0"
-                    } else {
-                        "finite and >= 0"
-                    },
-                })
-            }
-        };
-        check("normal_penalty", self.normal_penalty, true)?;
-        check("penalty_ratio", self.penalty_ratio, false)?;
-        check("friction", self.friction, false)?;
-        check("damping", self.damping, false)?;
-        check("damping_ratio", self.damping_ratio, false)?;
-        Ok(())
+        match self.fields().into_iter().find(|(_, v, r)| !r.holds(*v)) {
+            Some((field, value, requirement)) => Err(ContactError::InvalidParameter {
+                field,
+                value,
+                requirement: requirement.describe(),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Tangential damping ratio `beta_s = beta_n * damping_ratio` (eq 3).

@@ -5,7 +5,11 @@
 //! coarse graining. Scaling a scene ([`Scene::scaled`]) and coarse graining it
 //! ([`Scene::coarsened`]) are generic over this walk: there is no hand-written list of
 //! multiplications anywhere. Each section is destructured without `..`, so adding a field
-//! to a section does not compile until it is declared here.
+//! to a section does not compile until it is declared here. The sections that other
+//! schemas reuse (`[material]`, `[contact]`) expose their own walk
+//! ([`MaterialSection::visit_fields`], [`ContactSection::visit_fields`]), and
+//! [`Role::coarse_graining_factor`] is the one rule of coarse graining, so a schema that
+//! embeds them scales them without listing their fields again.
 
 use crate::scene::{
     ContactSection, MaterialSection, ParticleSection, Scene, SimulationSection, WallSection,
@@ -29,6 +33,25 @@ pub enum Role {
     Parameter,
 }
 
+impl Role {
+    /// The factor of a field of this role and `dimension` in coarse graining by the `h`
+    /// of `law` (`ScaleLaw::exact(h)`, MODEL.md section 5): particle sizes take their
+    /// factor; material and contact parameters take theirs only with `exact_scaling`;
+    /// domain, loads and times keep 1.
+    pub fn coarse_graining_factor(
+        self,
+        law: &ScaleLaw,
+        dimension: Dimension,
+        exact_scaling: bool,
+    ) -> f64 {
+        match self {
+            Role::Particle => law.factor(dimension),
+            Role::Parameter if exact_scaling => law.factor(dimension),
+            Role::Parameter | Role::Domain => 1.0,
+        }
+    }
+}
+
 /// One numeric field: where it is, what it is, and its value to read or change.
 pub struct Field<'a> {
     /// Key path as in error messages, e.g. `particle[2].center[0]`.
@@ -43,6 +66,24 @@ pub struct Field<'a> {
     pub value: &'a mut f64,
 }
 
+impl<'a> Field<'a> {
+    /// The field `key` holding a catalogued `quantity` (its dimension from the catalogue)
+    /// with `role`: for schemas that declare fields of their own next to the sections
+    /// walked here.
+    pub fn new(key: String, quantity: &'static str, role: Role, value: &'a mut f64) -> Self {
+        // Every quantity named is in the catalogue (checked by the tests of this module for
+        // the scene's fields); an unknown name would be a programming error caught there.
+        let dimension = dimension_of(quantity).unwrap_or(Dimension::NONE);
+        Field {
+            key,
+            quantity,
+            dimension,
+            role,
+            value,
+        }
+    }
+}
+
 /// Walks fields, stamping quantity and role.
 struct Walker<'v, 'f> {
     visit: &'v mut dyn FnMut(Field<'_>),
@@ -50,18 +91,18 @@ struct Walker<'v, 'f> {
     _marker: std::marker::PhantomData<&'f ()>,
 }
 
-impl Walker<'_, '_> {
+impl<'v> Walker<'v, '_> {
+    fn new(visit: &'v mut dyn FnMut(Field<'_>), prefix: &str) -> Self {
+        Walker {
+            visit,
+            prefix: prefix.to_string(),
+            _marker: std::marker::PhantomData,
+        }
+    }
+
     fn scalar(&mut self, key: &str, quantity: &'static str, role: Role, value: &mut f64) {
-        // Every quantity named here is in the catalogue (checked by the tests of this
-        // module); an unknown name would be a programming error caught there.
-        let dimension = dimension_of(quantity).unwrap_or(Dimension::NONE);
-        (self.visit)(Field {
-            key: format!("{}{key}", self.prefix),
-            quantity,
-            dimension,
-            role,
-            value,
-        });
+        let key = format!("{}{key}", self.prefix);
+        (self.visit)(Field::new(key, quantity, role, value));
     }
 
     fn opt(&mut self, key: &str, quantity: &'static str, role: Role, value: &mut Option<f64>) {
@@ -114,11 +155,7 @@ impl Scene {
             contact,
             walls,
         } = self;
-        let mut w = Walker {
-            visit,
-            prefix: String::new(),
-            _marker: std::marker::PhantomData,
-        };
+        let mut w = Walker::new(visit, "");
         w.prefix = "simulation.".into();
         simulation_fields(&mut w, simulation);
         w.prefix = "material.".into();
@@ -168,17 +205,31 @@ impl Scene {
         let mut out = self.with_explicit_defaults();
         let mut applied = Vec::new();
         out.visit_fields(&mut |f: Field<'_>| {
-            let factor = match f.role {
-                Role::Particle => law.factor(f.dimension),
-                Role::Parameter if exact_scaling => law.factor(f.dimension),
-                Role::Parameter | Role::Domain => 1.0,
-            };
+            let factor = f
+                .role
+                .coarse_graining_factor(&law, f.dimension, exact_scaling);
             if factor != 1.0 {
                 *f.value *= factor;
                 applied.push((f.key, f.quantity, factor));
             }
         });
         Ok((out, applied))
+    }
+}
+
+impl MaterialSection {
+    /// Calls `visit` for every numeric field of the section, keys prefixed by `prefix`
+    /// (`material.` in a scene).
+    pub fn visit_fields(&mut self, prefix: &str, visit: &mut dyn FnMut(Field<'_>)) {
+        material_fields(&mut Walker::new(visit, prefix), self);
+    }
+}
+
+impl ContactSection {
+    /// Calls `visit` for every numeric field present in the section, keys prefixed by
+    /// `prefix` (`contact.` in a scene).
+    pub fn visit_fields(&mut self, prefix: &str, visit: &mut dyn FnMut(Field<'_>)) {
+        contact_fields(&mut Walker::new(visit, prefix), self);
     }
 }
 
@@ -349,6 +400,38 @@ mesh = { level = 1, order = "linear", sizing = "inscribed" }
         visited.sort();
         floats.sort();
         assert_eq!(visited, floats);
+    }
+
+    /// The walks of `[material]` and `[contact]` alone are the scene walk's entries of
+    /// those sections, and the coarse-graining rule gives the factors of `coarsened`.
+    #[test]
+    fn section_walks_are_the_scene_walk() {
+        let mut scene = Scene::from_toml_str(EVERY_KEY, "test").unwrap();
+        let mut whole = Vec::new();
+        scene.visit_fields(&mut |f: Field<'_>| whole.push((f.key, f.quantity, f.role)));
+        whole.retain(|(k, _, _)| k.starts_with("material.") || k.starts_with("contact."));
+        let mut sections = Vec::new();
+        let mut record = |f: Field<'_>| sections.push((f.key, f.quantity, f.role));
+        scene.material.visit_fields("material.", &mut record);
+        let contact = scene.contact.as_mut().unwrap();
+        contact.visit_fields("contact.", &mut record);
+        assert_eq!(sections, whole);
+        let law = ScaleLaw::exact(2.0).unwrap();
+        let penalty = dimension_of("penalty_stiffness").unwrap();
+        let length = dimension_of("length").unwrap();
+        assert_eq!(
+            Role::Parameter.coarse_graining_factor(&law, penalty, true),
+            0.5
+        );
+        assert_eq!(
+            Role::Parameter.coarse_graining_factor(&law, penalty, false),
+            1.0
+        );
+        assert_eq!(
+            Role::Particle.coarse_graining_factor(&law, length, false),
+            2.0
+        );
+        assert_eq!(Role::Domain.coarse_graining_factor(&law, length, true), 1.0);
     }
 
     fn collect_floats(v: &toml::Value, path: String, out: &mut Vec<String>) {

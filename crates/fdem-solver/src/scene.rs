@@ -8,7 +8,11 @@
 use crate::SolverError;
 use crate::engine::{Guard, Simulation, TimeStep};
 use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
-use crate::toml_input::{level, vector};
+use crate::toml_input::{
+    check_fraction, check_poisson, check_positive, check_requirement, level, poisson, positive,
+    positive_opt, unit_quaternion_opt, vector, vector_opt,
+};
+use fdem_contact::ContactParams;
 use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 use std::collections::BTreeMap;
@@ -33,27 +37,45 @@ pub struct Scene {
     pub walls: Vec<WallSection>,
 }
 
-/// `[contact]`: penalty contact (MODEL.md section 2, paper eqs 1-3, Table 3 defaults).
+/// `[contact]`: penalty contact (MODEL.md section 2, paper eqs 1-3).
+///
+/// The law's parameters take their defaults (the paper's Table 3) and their ranges from
+/// [`ContactParams`]; the TOML reports a value out of range at its line.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSection {
     /// Contact on or off; default on.
     #[serde(default = "default_true")]
     pub enabled: bool,
-    /// Normal penalty per unit area p_n (N/m^3), > 0; default 1.8e11.
-    #[serde(default = "default_normal_penalty", deserialize_with = "positive")]
+    /// Normal penalty per unit area p_n (N/m^3), > 0.
+    #[serde(
+        default = "law::normal_penalty::default",
+        deserialize_with = "law::normal_penalty::checked"
+    )]
     pub normal_penalty: f64,
-    /// Tangential / normal penalty ratio, > 0; default 1.
-    #[serde(default = "default_one", deserialize_with = "positive")]
+    /// Tangential / normal penalty ratio, > 0.
+    #[serde(
+        default = "law::penalty_ratio::default",
+        deserialize_with = "law::penalty_ratio::checked"
+    )]
     pub penalty_ratio: f64,
-    /// Coulomb friction coefficient, >= 0; default 0.3.
-    #[serde(default = "default_friction", deserialize_with = "non_negative")]
+    /// Coulomb friction coefficient, >= 0.
+    #[serde(
+        default = "law::friction::default",
+        deserialize_with = "law::friction::checked"
+    )]
     pub friction: f64,
-    /// Normal damping ratio beta_n, >= 0; default 0.2.
-    #[serde(default = "default_damping", deserialize_with = "non_negative")]
+    /// Normal damping ratio beta_n, >= 0.
+    #[serde(
+        default = "law::damping::default",
+        deserialize_with = "law::damping::checked"
+    )]
     pub damping: f64,
-    /// Tangential / normal damping ratio, >= 0; default 1.
-    #[serde(default = "default_one", deserialize_with = "non_negative")]
+    /// Tangential / normal damping ratio, >= 0.
+    #[serde(
+        default = "law::damping_ratio::default",
+        deserialize_with = "law::damping_ratio::checked"
+    )]
     pub damping_ratio: f64,
     /// Contact margin (m): Verlet skin and tunnelling scale; default a quarter of the
     /// shortest surface edge of the scene.
@@ -73,35 +95,84 @@ pub struct ContactSection {
     pub depth_limit: Option<f64>,
 }
 
+/// Serde defaults and range checks of the law's parameters in `[contact]`: each is the
+/// field's [`ContactParams::default`] value and [`ContactParams`] range.
+mod law {
+    macro_rules! parameter {
+        ($field:ident, $range:ident) => {
+            pub(super) mod $field {
+                use fdem_contact::ContactParams;
+
+                pub(in crate::scene) fn default() -> f64 {
+                    ContactParams::default().$field
+                }
+
+                pub(in crate::scene) fn checked<'de, D: serde::Deserializer<'de>>(
+                    d: D,
+                ) -> Result<f64, D::Error> {
+                    crate::toml_input::meeting(d, ContactParams::$range)
+                }
+            }
+        };
+    }
+    parameter!(normal_penalty, NORMAL_PENALTY);
+    parameter!(penalty_ratio, PENALTY_RATIO);
+    parameter!(friction, FRICTION);
+    parameter!(damping, DAMPING);
+    parameter!(damping_ratio, DAMPING_RATIO);
+}
+
 impl Default for ContactSection {
+    /// The paper's Table 3 ([`ContactParams::default`]), contact on, margins implicit.
     fn default() -> Self {
+        ContactSection::with_law(ContactParams::default())
+    }
+}
+
+impl ContactSection {
+    /// Contact on with the law `law` and implicit margin and depth limit.
+    pub fn with_law(law: ContactParams) -> ContactSection {
         ContactSection {
             enabled: true,
-            normal_penalty: default_normal_penalty(),
-            penalty_ratio: 1.0,
-            friction: default_friction(),
-            damping: default_damping(),
-            damping_ratio: 1.0,
+            normal_penalty: law.normal_penalty,
+            penalty_ratio: law.penalty_ratio,
+            friction: law.friction,
+            damping: law.damping,
+            damping_ratio: law.damping_ratio,
             margin: None,
             depth_limit: None,
         }
+    }
+
+    /// The contact law of this section.
+    pub fn law(&self) -> ContactParams {
+        ContactParams {
+            normal_penalty: self.normal_penalty,
+            penalty_ratio: self.penalty_ratio,
+            friction: self.friction,
+            damping: self.damping,
+            damping_ratio: self.damping_ratio,
+        }
+    }
+
+    /// The range checks of deserialization, for a section built in code: the first value
+    /// out of range as `(key in the section, message)`.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        for (key, value, requirement) in self.law().fields() {
+            check_requirement(requirement, value).map_err(|m| (key, m))?;
+        }
+        let lengths = [("margin", self.margin), ("depth_limit", self.depth_limit)];
+        for (key, value) in lengths {
+            if let Some(v) = value {
+                check_positive(v).map_err(|m| (key, m))?;
+            }
+        }
+        Ok(())
     }
 }
 
 fn default_true() -> bool {
     true
-}
-fn default_one() -> f64 {
-    1.0
-}
-fn default_normal_penalty() -> f64 {
-    1.8e11
-}
-fn default_friction() -> f64 {
-    0.3
-}
-fn default_damping() -> f64 {
-    0.2
 }
 
 /// Shape of a `[[wall]]`.
@@ -225,6 +296,17 @@ pub struct MaterialSection {
     pub poisson_ratio: f64,
 }
 
+impl MaterialSection {
+    /// The range checks of deserialization, for a section built in code: the first value
+    /// out of range as `(key in the section, message)`.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        check_positive(self.density).map_err(|m| ("density", m))?;
+        check_positive(self.youngs_modulus).map_err(|m| ("youngs_modulus", m))?;
+        check_poisson(self.poisson_ratio).map_err(|m| ("poisson_ratio", m))?;
+        Ok(())
+    }
+}
+
 /// `[[particle]]`: one spherical particle.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -252,7 +334,7 @@ pub struct ParticleSection {
     /// Orientation as a unit quaternion `[w, x, y, z]`; default identity.
     #[serde(
         default,
-        deserialize_with = "quaternion_opt",
+        deserialize_with = "unit_quaternion_opt",
         skip_serializing_if = "Option::is_none"
     )]
     pub orientation: Option<[f64; 4]>,
@@ -301,68 +383,14 @@ pub const DEFAULT_MARGIN_FRACTION: f64 = 0.25;
 /// Default number of outputs over the duration.
 pub const DEFAULT_OUTPUTS: f64 = 100.0;
 
-fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    let v = f64::deserialize(d)?;
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "must be a positive finite number (SI units), got {v}"
-        )))
-    }
-}
-
-fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    let v = f64::deserialize(d)?;
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "must be a finite number >= 0, got {v}"
-        )))
-    }
-}
-
-fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    positive(d).map(Some)
-}
-
+/// `deserialize_with` for `dt_safety`: a fraction of the stable bound.
 fn safety_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     let v = f64::deserialize(d)?;
-    if v > 0.0 && v <= 1.0 {
-        Ok(Some(v))
-    } else {
-        Err(D::Error::custom(format!(
+    check_fraction(v).map(Some).map_err(|_| {
+        D::Error::custom(format!(
             "must be a fraction of the stable bound in (0, 1], got {v}"
-        )))
-    }
-}
-
-fn poisson<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    let v = f64::deserialize(d)?;
-    if v > -1.0 && v < 0.5 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!(
-            "Poisson's ratio must lie in (-1, 0.5), got {v}"
-        )))
-    }
-}
-
-fn vector_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
-    vector(d).map(Some)
-}
-
-fn quaternion_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D::Error> {
-    let q = <[f64; 4]>::deserialize(d)?;
-    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if norm.is_finite() && (norm - 1.0).abs() <= 1e-6 {
-        Ok(Some(q.map(|x| x / norm)))
-    } else {
-        Err(D::Error::custom(format!(
-            "must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got {q:?} with norm {norm}"
-        )))
-    }
+        ))
+    })
 }
 
 /// A key name and whether the table has it.
@@ -495,15 +523,8 @@ impl Scene {
     }
 
     /// The contact law of the scene's `[contact]` section (defaults of Table 3 filled in).
-    pub fn contact_params(&self) -> fdem_contact::ContactParams {
-        let c = self.contact_section();
-        fdem_contact::ContactParams {
-            normal_penalty: c.normal_penalty,
-            penalty_ratio: c.penalty_ratio,
-            friction: c.friction,
-            damping: c.damping,
-            damping_ratio: c.damping_ratio,
-        }
+    pub fn contact_params(&self) -> ContactParams {
+        self.contact_section().law()
     }
 
     /// The scene's `[[wall]]` tables as contact walls.
@@ -624,5 +645,47 @@ impl Scene {
     /// Builds the meshes, masses and initial state and returns a ready simulation.
     pub fn build(&self) -> Result<Simulation, SolverError> {
         self.model()?.build()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = "[simulation]\nduration = 1.0\n\
+        [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n\
+        [[particle]]\ndiameter = 0.015\ncenter = [0.0, 0.0, 0.0]\n[contact]\n";
+
+    /// An empty `[contact]` table is the law's default, and each of the law's parameters
+    /// is refused by the TOML (at its line) exactly when the law refuses it.
+    #[test]
+    fn contact_defaults_and_ranges_are_the_laws() {
+        let scene = Scene::from_toml_str(SCENE, "t").unwrap();
+        assert_eq!(scene.contact, Some(ContactSection::default()));
+        assert_eq!(scene.contact_params(), ContactParams::default());
+        assert_eq!(ContactSection::default().law(), ContactParams::default());
+        let keys = ContactParams::default().fields().map(|(key, _, _)| key);
+        for (i, key) in keys.into_iter().enumerate() {
+            for value in [-1.0, 0.0, 0.5] {
+                let mut section = ContactSection::default();
+                let mut visited = 0;
+                section.visit_fields("", &mut |f| {
+                    if f.key == key {
+                        *f.value = value;
+                        visited += 1;
+                    }
+                });
+                assert_eq!(visited, 1, "{key}");
+                let law = section.law();
+                assert_eq!(law.fields()[i].1, value, "{key}");
+                let text = format!("{SCENE}{key} = {value:?}\n");
+                let parsed = Scene::from_toml_str(&text, "t");
+                assert_eq!(parsed.is_ok(), law.validate().is_ok(), "{key} = {value}");
+                assert_eq!(section.check().is_ok(), law.validate().is_ok(), "{key}");
+                if let Err(SolverError::Scene { key: k, line, .. }) = parsed {
+                    assert_eq!((k.as_str(), line), (&*format!("contact.{key}"), 11));
+                }
+            }
+        }
     }
 }

@@ -6,9 +6,13 @@ use crate::TriaxialError;
 use crate::test_spec::{MembraneSection, TestSection};
 use fdem_mesh::{ElementOrder, Sizing};
 use fdem_scaling::ScaleLaw;
-use fdem_solver::toml_input::{level, vector};
-use fdem_solver::{ContactSection, MaterialSection};
-use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
+use fdem_solver::toml_input::{
+    at_least_one, check_at_least_one, check_fraction, check_level, check_non_negative,
+    check_positive, check_vector, fraction, fraction_opt, level, non_negative, positive,
+    positive_opt, vector,
+};
+use fdem_solver::{ContactSection, Field, MaterialSection, Role};
+use serde::{Deserialize, Serialize};
 
 /// Tolerance on the sum of the mass fractions.
 pub const FRACTION_SUM_TOLERANCE: f64 = 1e-6;
@@ -370,63 +374,6 @@ pub fn default_material() -> MaterialSection {
     }
 }
 
-// ---- single-value rules, shared by deserialization (with line numbers) and validate ----
-
-pub(crate) fn check_positive(v: f64) -> Result<f64, String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(format!(
-            "must be a positive finite number (SI units), got {v}"
-        ))
-    }
-}
-
-pub(crate) fn check_non_negative(v: f64) -> Result<f64, String> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be a finite number >= 0, got {v}"))
-    }
-}
-
-pub(crate) fn check_fraction(v: f64) -> Result<f64, String> {
-    if v > 0.0 && v <= 1.0 {
-        Ok(v)
-    } else {
-        Err(format!("must lie in (0, 1], got {v}"))
-    }
-}
-
-pub(crate) fn positive<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    check_positive(f64::deserialize(d)?).map_err(D::Error::custom)
-}
-
-pub(crate) fn positive_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    positive(d).map(Some)
-}
-
-pub(crate) fn non_negative<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    check_non_negative(f64::deserialize(d)?).map_err(D::Error::custom)
-}
-
-pub(crate) fn fraction<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    check_fraction(f64::deserialize(d)?).map_err(D::Error::custom)
-}
-
-fn fraction_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    fraction(d).map(Some)
-}
-
-pub(crate) fn at_least_one<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
-    let v = u64::deserialize(d)?;
-    if v >= 1 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom("must be at least 1"))
-    }
-}
-
 /// The parameters of a specimen as simulated: particle sizes times h, and (with exact
 /// scaling) material and contact parameters times their `ScaleLaw::exact(h)` factors.
 #[derive(Clone, Debug, PartialEq)]
@@ -548,72 +495,43 @@ impl SpecimenSpec {
     /// The parameters as simulated (sizes x h; with exact scaling, every material and
     /// contact parameter times its factor from `ScaleLaw::exact(h)`; the contact margin,
     /// a particle length, always x h).
+    ///
+    /// The fields and their quantities are the ones the sections declare for scenes
+    /// (`visit_fields`), scaled by the rule of scene coarse graining
+    /// ([`Role::coarse_graining_factor`]); the specimen adds its own two: the gradation's
+    /// sizes (particle lengths) and the preparation friction (a parameter).
     pub fn simulated(&self) -> Result<Simulated, TriaxialError> {
-        let h = self.coarse_graining;
-        let law = ScaleLaw::exact(h).map_err(|e| self.rule("coarse_graining", e.to_string()))?;
-        let sizes = self
-            .gradation
-            .iter()
-            .map(|c| c.size * law.factor_of("length").unwrap_or(h))
-            .collect();
+        let law = ScaleLaw::exact(self.coarse_graining)
+            .map_err(|e| self.rule("coarse_graining", e.to_string()))?;
+        let mut sizes: Vec<f64> = self.gradation.iter().map(|c| c.size).collect();
         let mut material = self.material.clone();
         let mut contact = self.contact.clone();
         let mut preparation_friction = self.preparation.friction;
         let mut scaled = Vec::new();
-        for length in [contact.margin.as_mut(), contact.depth_limit.as_mut()]
-            .into_iter()
-            .flatten()
-        {
-            *length *= law.factor_of("length").unwrap_or(h);
-        }
-        if self.exact_scaling {
-            let MaterialSection {
-                density,
-                youngs_modulus,
-                poisson_ratio,
-            } = &mut material;
-            let ContactSection {
-                enabled: _,
-                normal_penalty,
-                penalty_ratio,
-                friction,
-                damping,
-                damping_ratio,
-                margin: _,
-                depth_limit: _,
-            } = &mut contact;
-            let fields: [(&str, &'static str, &mut f64); 9] = [
-                ("material.density", "density", density),
-                ("material.youngs_modulus", "youngs_modulus", youngs_modulus),
-                ("material.poisson_ratio", "poisson_ratio", poisson_ratio),
-                (
-                    "contact.normal_penalty",
-                    "penalty_stiffness",
-                    normal_penalty,
-                ),
-                ("contact.penalty_ratio", "ratio", penalty_ratio),
-                ("contact.friction", "friction", friction),
-                ("contact.damping", "damping", damping),
-                ("contact.damping_ratio", "ratio", damping_ratio),
-                (
-                    "preparation.friction",
-                    "friction",
-                    &mut preparation_friction,
-                ),
-            ];
-            for (key, quantity, value) in fields {
-                let factor = law.factor_of(quantity).ok_or_else(|| {
-                    self.rule(
-                        "exact_scaling",
-                        format!("internal error: quantity {quantity} is not catalogued"),
-                    )
-                })?;
-                if factor != 1.0 {
-                    *value *= factor;
-                    scaled.push((key.to_string(), quantity, factor));
+        let mut apply = |f: Field<'_>| {
+            let factor = f
+                .role
+                .coarse_graining_factor(&law, f.dimension, self.exact_scaling);
+            if factor != 1.0 {
+                *f.value *= factor;
+                if f.role == Role::Parameter {
+                    scaled.push((f.key, f.quantity, factor));
                 }
             }
+        };
+        for (i, size) in sizes.iter_mut().enumerate() {
+            let key = format!("gradation[{i}].size");
+            apply(Field::new(key, "length", Role::Particle, size));
         }
+        material.visit_fields("material.", &mut apply);
+        contact.visit_fields("contact.", &mut apply);
+        let key = "preparation.friction".to_string();
+        apply(Field::new(
+            key,
+            "friction",
+            Role::Parameter,
+            &mut preparation_friction,
+        ));
         Ok(Simulated {
             sizes,
             material,
@@ -624,26 +542,61 @@ impl SpecimenSpec {
     }
 
     fn rule(&self, key: &str, message: String) -> TriaxialError {
-        TriaxialError::Definition {
-            origin: self.name.clone(),
-            line: 0,
-            column: 0,
-            key: key.to_string(),
-            message,
-        }
+        definition_error(&self.name, key, message)
     }
 
     /// Checks every rule of the schema (single values and the rules across keys) before
     /// any work; the first broken rule is returned as one line naming the key.
     pub fn validate(&self, origin: &str) -> Result<(), TriaxialError> {
-        let fail = |key: &str, message: String| TriaxialError::Definition {
-            origin: origin.to_string(),
-            line: 0,
-            column: 0,
-            key: key.to_string(),
-            message,
-        };
-        let single = |key: &str, r: Result<f64, String>| r.map(|_| ()).map_err(|m| fail(key, m));
+        self.first_broken_rule()
+            .map_err(|(key, message)| definition_error(origin, &key, message))
+    }
+
+    /// The steps of [`SpecimenSpec::validate`], in order.
+    fn first_broken_rule(&self) -> Result<(), Broken> {
+        self.check_values()?;
+        self.test.check().map_err(within(""))?;
+        self.material.check().map_err(within("material."))?;
+        self.check_contact()?;
+        single("mesh.level", check_level(i64::from(self.mesh.level)))?;
+        self.check_preparation()?;
+        self.check_geometry()?;
+        self.check_gradation()?;
+        self.check_amount_of_solid()?;
+        self.simulated()
+            .map_err(|e| ("coarse_graining".into(), e.to_string()))?;
+        Ok(())
+    }
+}
+
+/// A broken rule of a definition: `(key, message)`.
+type Broken = (String, String);
+
+/// A definition error of `origin` without a line (a rule checked after parsing).
+fn definition_error(origin: &str, key: &str, message: String) -> TriaxialError {
+    TriaxialError::Definition {
+        origin: origin.to_string(),
+        line: 0,
+        column: 0,
+        key: key.to_string(),
+        message,
+    }
+}
+
+/// The result of a single-value check as a broken rule of `key`.
+fn single<T>(key: &str, checked: Result<T, String>) -> Result<(), Broken> {
+    checked.map(|_| ()).map_err(|m| (key.to_string(), m))
+}
+
+/// Prefixes the key of a section's broken rule with the section's path.
+fn within(prefix: &str) -> impl Fn((&'static str, String)) -> Broken + '_ {
+    move |(key, m)| (format!("{prefix}{key}"), m)
+}
+
+/// The steps of [`SpecimenSpec::validate`]; each returns its first broken rule.
+impl SpecimenSpec {
+    /// The top-level single values.
+    fn check_values(&self) -> Result<(), Broken> {
         single("diameter", check_positive(self.diameter))?;
         single("height", check_positive(self.height))?;
         single(
@@ -658,43 +611,23 @@ impl SpecimenSpec {
         if let Some(v) = self.loading_velocity {
             single("loading_velocity", check_positive(v))?;
         }
-        self.test.check().map_err(|(key, m)| fail(key, m))?;
-        let m = &self.material;
-        single("material.density", check_positive(m.density))?;
-        single("material.youngs_modulus", check_positive(m.youngs_modulus))?;
-        if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
-            return Err(fail(
-                "material.poisson_ratio",
-                format!("must lie in (-1, 0.5), got {}", m.poisson_ratio),
-            ));
-        }
-        let c = &self.contact;
-        single("contact.normal_penalty", check_positive(c.normal_penalty))?;
-        single("contact.penalty_ratio", check_positive(c.penalty_ratio))?;
-        single("contact.friction", check_non_negative(c.friction))?;
-        single("contact.damping", check_non_negative(c.damping))?;
-        single("contact.damping_ratio", check_non_negative(c.damping_ratio))?;
-        if let Some(margin) = c.margin {
-            single("contact.margin", check_positive(margin))?;
-        }
-        if let Some(depth_limit) = c.depth_limit {
-            single("contact.depth_limit", check_positive(depth_limit))?;
-        }
-        if !c.enabled {
-            return Err(fail(
-                "contact.enabled",
+        Ok(())
+    }
+
+    /// `[contact]`: the ranges of the scene schema, and contact switched on.
+    fn check_contact(&self) -> Result<(), Broken> {
+        self.contact.check().map_err(within("contact."))?;
+        if !self.contact.enabled {
+            return Err((
+                "contact.enabled".into(),
                 "a specimen needs contact; remove `enabled = false`".into(),
             ));
         }
-        if self.mesh.level > fdem_mesh::MAX_LEVEL {
-            return Err(fail(
-                "mesh.level",
-                format!(
-                    "subdivision level must be 0, 1, 2, 3 or 4, got {}",
-                    self.mesh.level
-                ),
-            ));
-        }
+        Ok(())
+    }
+
+    /// `[preparation]`: single values, then the loose fraction's own range.
+    fn check_preparation(&self) -> Result<(), Broken> {
         let p = &self.preparation;
         single("preparation.platen_speed", check_positive(p.platen_speed))?;
         single("preparation.friction", check_non_negative(p.friction))?;
@@ -708,51 +641,52 @@ impl SpecimenSpec {
         if let Some(t) = p.settle_time {
             single("preparation.settle_time", check_positive(t))?;
         }
-        if p.check_interval == 0 {
-            return Err(fail(
-                "preparation.check_interval",
-                "must be at least 1".into(),
-            ));
-        }
-        if !p.gravity.iter().all(|g| g.is_finite()) {
-            return Err(fail(
-                "preparation.gravity",
-                format!("every component must be finite, got {:?}", p.gravity),
-            ));
-        }
+        single(
+            "preparation.check_interval",
+            check_at_least_one(p.check_interval),
+        )?;
+        single("preparation.gravity", check_vector(p.gravity))?;
         let loose = p.loose_solid_fraction;
         if !(loose > 0.0 && loose <= MAX_LOOSE_SOLID_FRACTION) {
-            return Err(fail(
-                "preparation.loose_solid_fraction",
+            return Err((
+                "preparation.loose_solid_fraction".into(),
                 format!(
                     "must lie in (0, {MAX_LOOSE_SOLID_FRACTION}] (the random placement's \
                      relaxation jams near 0.5-0.55), got {loose}"
                 ),
             ));
         }
+        Ok(())
+    }
 
-        // Geometry.
-        let r = self.inner_radius();
-        if r <= 0.0 {
-            return Err(fail(
-                "membrane_thickness",
+    /// Room inside the membrane.
+    fn check_geometry(&self) -> Result<(), Broken> {
+        if self.inner_radius() <= 0.0 {
+            return Err((
+                "membrane_thickness".into(),
                 format!(
                     "{} m leaves no room inside a specimen of diameter {} m; it must be less than the radius",
                     self.membrane_thickness, self.diameter
                 ),
             ));
         }
+        Ok(())
+    }
 
-        // Gradation.
+    /// Size classes: present, valid, smaller than the specimen, distinct, fractions
+    /// summing to 1.
+    fn check_gradation(&self) -> Result<(), Broken> {
         if self.gradation.is_empty() {
-            return Err(fail(
-                "gradation",
+            return Err((
+                "gradation".into(),
                 "no size classes; give at least one { size = ..., mass_fraction = ... }".into(),
             ));
         }
         let h = self.coarse_graining;
+        let r = self.inner_radius();
         for (i, class) in self.gradation.iter().enumerate() {
-            single(&format!("gradation[{i}].size"), check_positive(class.size))?;
+            let size_key = format!("gradation[{i}].size");
+            single(&size_key, check_positive(class.size))?;
             single(
                 &format!("gradation[{i}].mass_fraction"),
                 check_fraction(class.mass_fraction),
@@ -760,8 +694,8 @@ impl SpecimenSpec {
             let d = class.size * h;
             let limit = (2.0 * r).min(self.height);
             if d >= limit {
-                return Err(fail(
-                    &format!("gradation[{i}].size"),
+                return Err((
+                    size_key,
                     format!(
                         "particles of {} m (x coarse_graining {h} = {d} m) are larger than the specimen \
                          (inner diameter {} m, height {} m); use smaller sizes or a smaller coarse_graining",
@@ -772,8 +706,8 @@ impl SpecimenSpec {
                 ));
             }
             if self.gradation[..i].iter().any(|o| o.size == class.size) {
-                return Err(fail(
-                    &format!("gradation[{i}].size"),
+                return Err((
+                    size_key,
                     format!(
                         "size {} m is listed twice; merge the two classes",
                         class.size
@@ -783,47 +717,52 @@ impl SpecimenSpec {
         }
         let sum: f64 = self.gradation.iter().map(|c| c.mass_fraction).sum();
         if (sum - 1.0).abs() > FRACTION_SUM_TOLERANCE {
-            return Err(fail(
-                "gradation",
+            return Err((
+                "gradation".into(),
                 format!(
                     "mass fractions sum to {}, not 1 (tolerance {FRACTION_SUM_TOLERANCE}); fix the mass_fraction values",
                     (sum * 1e9).round() / 1e9
                 ),
             ));
         }
+        Ok(())
+    }
 
-        // Amount of solid.
+    /// Amount of solid: one way of giving it, reachable, and denser than the loose
+    /// packing the preparation starts from.
+    fn check_amount_of_solid(&self) -> Result<(), Broken> {
         match (self.solid_fraction, self.particles) {
             (Some(_), Some(_)) => {
-                return Err(fail(
-                    "particles",
+                return Err((
+                    "particles".into(),
                     "give either solid_fraction or particles, not both".into(),
                 ));
             }
             (Some(f), None) if f > DENSEST_PACKING => {
-                return Err(fail(
-                    "solid_fraction",
+                return Err((
+                    "solid_fraction".into(),
                     format!(
                         "{f} exceeds the densest packing of spheres ({DENSEST_PACKING:.4}); no arrangement reaches it"
                     ),
                 ));
             }
-            (None, Some(0)) => {
-                return Err(fail("particles", "must be at least 1".into()));
-            }
+            (None, Some(n)) => single("particles", check_at_least_one(n))?,
             _ => {}
         }
+        let loose = self.preparation.loose_solid_fraction;
+        let too_loose = |target: String| {
+            Err((
+                "preparation.loose_solid_fraction".into(),
+                format!("{loose} must be below {target}, or there is nothing to compact"),
+            ))
+        };
         if let Some(f) = self.requested_solid_fraction()
             && f <= loose
         {
-            return Err(fail(
-                "preparation.loose_solid_fraction",
-                format!(
-                    "{loose} must be below the target solid fraction {f}, or there is nothing to compact"
-                ),
-            ));
+            return too_loose(format!("the target solid fraction {f}"));
         }
-        let counts = crate::counts::class_counts(self).map_err(|(key, m)| fail(&key, m))?;
+        let h = self.coarse_graining;
+        let counts = crate::counts::class_counts(self)?;
         let solids: f64 = counts
             .iter()
             .zip(&self.gradation)
@@ -832,8 +771,8 @@ impl SpecimenSpec {
         let implied = solids / self.inner_volume();
         if implied > DENSEST_PACKING {
             let needed = solids / (DENSEST_PACKING * self.inner_area());
-            return Err(fail(
-                "height",
+            return Err((
+                "height".into(),
                 format!(
                     "{} m is below the {needed:.4} m the solids need at the densest packing \
                      ({DENSEST_PACKING:.4}); raise the height or lower the particle count",
@@ -842,15 +781,94 @@ impl SpecimenSpec {
             ));
         }
         if implied <= loose {
-            return Err(fail(
-                "preparation.loose_solid_fraction",
-                format!(
-                    "{loose} must be below the specimen's solid fraction {implied:.4}, or there is nothing to compact"
-                ),
-            ));
+            return too_loose(format!("the specimen's solid fraction {implied:.4}"));
         }
-        self.simulated()
-            .map_err(|e| fail("coarse_graining", e.to_string()))?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Definitions built in code get the rules of the schema, with the key and the
+    /// message of the TOML reader where it has one.
+    #[test]
+    fn definitions_built_in_code_are_checked_by_the_schema_s_rules() {
+        let good = Preset::find("E4").unwrap().spec();
+        assert!(good.validate("code").is_ok());
+        type Spoil = fn(&mut SpecimenSpec);
+        let cases: [(&str, Spoil, &str); 8] = [
+            ("diameter", |s| s.diameter = -1.0, "positive finite number"),
+            (
+                "material.poisson_ratio",
+                |s| s.material.poisson_ratio = 0.5,
+                "must lie in (-1, 0.5), got 0.5",
+            ),
+            (
+                "contact.penalty_ratio",
+                |s| s.contact.penalty_ratio = 0.0,
+                "positive finite number",
+            ),
+            ("contact.damping", |s| s.contact.damping = -0.1, ">= 0"),
+            (
+                "mesh.level",
+                |s| s.mesh.level = 7,
+                "subdivision level must be 0, 1, 2, 3 or 4, got 7",
+            ),
+            (
+                "preparation.check_interval",
+                |s| s.preparation.check_interval = 0,
+                "must be at least 1",
+            ),
+            (
+                "preparation.gravity",
+                |s| s.preparation.gravity[2] = f64::NAN,
+                "every component must be finite",
+            ),
+            (
+                "particles",
+                |s| {
+                    s.solid_fraction = None;
+                    s.particles = Some(0);
+                },
+                "must be at least 1",
+            ),
+        ];
+        for (key, spoil, fragment) in cases {
+            let mut spec = good.clone();
+            spoil(&mut spec);
+            let e = spec.validate("code").unwrap_err().to_string();
+            assert!(e.starts_with(&format!("code: {key}: ")), "{key}: {e}");
+            assert!(e.contains(fragment), "{key}: {e}");
+        }
+    }
+
+    /// Sizes and contact lengths follow h; with exact scaling the parameters follow
+    /// Table 1 (only the penalty changes, and only parameters are listed as scaled).
+    #[test]
+    fn simulated_scales_sizes_lengths_and_with_exact_scaling_the_parameters() {
+        let mut spec = crate::quick_spec();
+        spec.coarse_graining = 2.0;
+        spec.contact.depth_limit = Some(0.003);
+        spec.preparation.friction = 0.1;
+        for exact in [false, true] {
+            spec.exact_scaling = exact;
+            let s = spec.simulated().unwrap();
+            assert_eq!(s.sizes, [0.075]);
+            assert_eq!(s.contact.margin, Some(0.008));
+            assert_eq!(s.contact.depth_limit, Some(0.006));
+            assert_eq!(s.material, spec.material);
+            assert_eq!(s.preparation_friction, 0.1);
+            let penalty = if exact { 2.25e10 } else { 4.5e10 };
+            assert_eq!(s.contact.normal_penalty, penalty);
+            let keys: Vec<&str> = s.scaled.iter().map(|(k, _, _)| k.as_str()).collect();
+            let expected: &[&str] = if exact {
+                &["contact.normal_penalty"]
+            } else {
+                &[]
+            };
+            assert_eq!(keys, expected);
+        }
     }
 }

@@ -2,7 +2,10 @@
 //! and the loading of the triaxial test (docs/TRIAXIAL.md has the schema and the reasons
 //! for every default).
 
-use crate::spec::{at_least_one, check_fraction, fraction, non_negative, positive, positive_opt};
+use fdem_solver::toml_input::{
+    at_least_one, check_fraction, fraction, non_negative, non_negative_opt, poisson, positive,
+    positive_opt,
+};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 
 /// Largest target axial strain accepted (a logarithmic strain of 0.5 is a height ratio
@@ -248,9 +251,6 @@ fn default_membrane_density() -> f64 {
 fn default_membrane_damping() -> f64 {
     8.0e4
 }
-fn non_negative_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    non_negative(d).map(Some)
-}
 fn default_target_strain() -> f64 {
     0.15
 }
@@ -300,15 +300,6 @@ fn check_target_strain(v: f64) -> Result<f64, String> {
 
 fn target_strain<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     check_target_strain(f64::deserialize(d)?).map_err(D::Error::custom)
-}
-
-fn poisson<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    let v = f64::deserialize(d)?;
-    if v > -1.0 && v < 0.5 {
-        Ok(v)
-    } else {
-        Err(D::Error::custom(format!("must lie in (-1, 0.5), got {v}")))
-    }
 }
 
 fn divisions_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<usize>, D::Error> {
