@@ -1,4 +1,4 @@
-//! Exact-scaling invariance of whole simulations (MODEL.md section 4, issue 5).
+//! Exact-scaling invariance of whole simulations (docs/MODEL.md section 4, issue 5).
 //!
 //! Random small scenes (2 to 8 particles of mixed sizes, contacts, walls, friction,
 //! damping, gravity, linear and quadratic meshes) are run as given and exactly scaled by

@@ -59,7 +59,7 @@ impl LawOutput {
     }
 }
 
-/// Evaluates the contact law for one node (MODEL.md section 2, paper eqs 1-3).
+/// Evaluates the contact law for one node (docs/MODEL.md section 2, paper eqs 1-3).
 ///
 /// - Normal (eq 1 with eqs 2-3): `F_n = max(0, k_n d_n + c_n v_approach)` with
 ///   `v_approach = -(v_rel . n)`. The paper writes `|k_n d_n - f_vd|`; we clamp at zero

@@ -1,7 +1,7 @@
 //! Penalty node-to-face contact between deformable bodies and rigid walls.
 //!
 //! # What this crate owns (an API boundary: other crates call it directly)
-//! - **The contact law** ([`evaluate_law`], MODEL.md section 2, paper eqs 1-3): normal
+//! - **The contact law** ([`evaluate_law`], docs/MODEL.md section 2, paper eqs 1-3): normal
 //!   penalty `F_n = max(0, k_n d_n + c_n v_approach)` with `k_n = p_n A` (eq 2) and
 //!   `c_n = 2 beta_n sqrt(m k_n)` (eq 3); tangential elastic displacement with history,
 //!   rotated into the current tangent plane, Coulomb cap `|F_s| <= mu F_n` with cut-back.
@@ -30,7 +30,7 @@
 //! - **Bookkeeping**: stored energy, damping power, friction dissipation, wall power
 //!   ([`ContactReport`]); the force on each wall; every node contact ([`NodeContact`]) and
 //!   per body-pair sums ([`PairSum`]); the contact stable time step ([`StableStep`],
-//!   MODEL.md section 11).
+//!   docs/MODEL.md section 11).
 //!
 //! # What it does not own
 //! No constitutive model, no masses of its own, no time integration: its inputs are

@@ -194,7 +194,7 @@ pub struct ContactReport {
     pub discarded_sheet_hits: usize,
 }
 
-/// The smallest contact stable time step over the surface nodes (MODEL.md section 11).
+/// The smallest contact stable time step over the surface nodes (docs/MODEL.md section 11).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StableStep {
     /// `dt <= 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` (s).
@@ -534,7 +534,7 @@ impl ContactModel {
         self.kernel = kernel;
     }
 
-    /// Smallest contact stable time step over the surface nodes (MODEL.md section 11), with
+    /// Smallest contact stable time step over the surface nodes (docs/MODEL.md section 11), with
     /// the node that sets it; `None` without surface nodes.
     ///
     /// Per node, `dt = 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` with the larger of `k_n`,

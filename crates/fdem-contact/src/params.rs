@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::ContactError;
 
-/// Parameters of the penalty contact law (MODEL.md section 2, paper eqs 1-3, Table 3).
+/// Parameters of the penalty contact law (docs/MODEL.md section 2, paper eqs 1-3, Table 3).
 ///
 /// The default is the source paper's Table 3.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -153,7 +153,7 @@ impl ContactParams {
     }
 }
 
-/// Critical time step of one spring-dashpot (MODEL.md section 11):
+/// Critical time step of one spring-dashpot (docs/MODEL.md section 11):
 /// `dt <= 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` (s).
 ///
 /// This is the central-difference stability limit of a damped oscillator of stiffness `k`

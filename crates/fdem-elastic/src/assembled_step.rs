@@ -1,7 +1,7 @@
 //! The stable time step of a whole body by power iteration on its assembled stiffness.
 //!
 //! Central differences are stable for `dt <= 2 / omega_max`, `omega_max^2` the largest
-//! eigenvalue of `M^-1/2 K M^-1/2` of the *assembled* body (MODEL.md section 11). The
+//! eigenvalue of `M^-1/2 K M^-1/2` of the *assembled* body (docs/MODEL.md section 11). The
 //! element bound ([`ElementSet::stable_time_step`]) never exceeds it (element eigenvalue
 //! inequality) and is often well below it, because an element's nodes carry only that
 //! element's share of mass: 1.27 times below for a level-1 linear particle. This module

@@ -1,7 +1,7 @@
 //! Per-element kernels: co-rotated kinematics, internal forces, strain energy, stress, and the
 //! reference stiffness used for the stable time step.
 //!
-//! Notation (MODEL.md section 3, Felippa & Haugen 2005 for the co-rotational frame):
+//! Notation (docs/MODEL.md section 3, Felippa & Haugen 2005 for the co-rotational frame):
 //! `X` rest positions, `x` current positions, `N_a` shape functions, `g_a = grad N_a` of the
 //! *linear* tetrahedron in the rest configuration (constant; `g_0 = -(g_1 + g_2 + g_3)`),
 //! `F` the deformation gradient, `F = R U` its polar decomposition,
@@ -576,7 +576,7 @@ fn mandel_c_sqrt(lame: Lame) -> SMatrix<f64, 6, 6> {
 }
 
 /// `2 / omega_max` of one element, `omega_max^2` the largest eigenvalue of
-/// `M^{-1/2} K M^{-1/2}` with the element's lumped masses (MODEL.md section 11).
+/// `M^{-1/2} K M^{-1/2}` with the element's lumped masses (docs/MODEL.md section 11).
 ///
 /// `K = sum_q w_q B_q^T C B_q = G^T G` with `G` the rows `sqrt(w_q) C^{1/2} B_q` stacked, so
 /// the non-zero eigenvalues of `M^{-1/2} K M^{-1/2}` (12x12 or 30x30) are those of the

@@ -2,11 +2,11 @@
 //!
 //! # What this crate owns
 //! * [`Material`]: isotropic linear elasticity (density, Young's modulus, Poisson's ratio),
-//!   Lamé parameters and wave speeds (MODEL.md section 3).
+//!   Lamé parameters and wave speeds (docs/MODEL.md section 3).
 //! * [`ElementSet`]: all tetrahedra of one body (4-node linear or 10-node quadratic), with
 //!   reference data precomputed once; elastic nodal forces, strain energy and element
 //!   stresses for given node positions; lumped nodal masses; the per-element stable time
-//!   step of explicit central differences (MODEL.md section 11), and the assembled body's
+//!   step of explicit central differences (docs/MODEL.md section 11), and the assembled body's
 //!   bound estimated by power iteration ([`ElementSet::assembled_time_step`]).
 //! * [`polar_rotation`]: the rotation of the polar decomposition of a 3x3 matrix.
 //!

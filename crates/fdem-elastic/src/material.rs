@@ -1,4 +1,4 @@
-//! Isotropic linear elastic material (MODEL.md section 3).
+//! Isotropic linear elastic material (docs/MODEL.md section 3).
 
 use serde::{Deserialize, Serialize};
 
@@ -6,7 +6,7 @@ use crate::ElasticError;
 
 /// Isotropic linear elastic material, SI units.
 ///
-/// Lamé parameters (MODEL.md section 3): `lambda = E nu / ((1 + nu)(1 - 2 nu))`,
+/// Lamé parameters (docs/MODEL.md section 3): `lambda = E nu / ((1 + nu)(1 - 2 nu))`,
 /// `G = E / (2 (1 + nu))`.
 ///
 /// The fields are public for serialization; anything built from them
@@ -81,7 +81,7 @@ impl Material {
         self.lame_lambda() + 2.0 * self.shear_modulus()
     }
 
-    /// Dilatational wave speed `c_p = sqrt((lambda + 2 G) / rho)`, m/s (MODEL.md section 11).
+    /// Dilatational wave speed `c_p = sqrt((lambda + 2 G) / rho)`, m/s (docs/MODEL.md section 11).
     pub fn p_wave_speed(&self) -> f64 {
         (self.p_wave_modulus() / self.density).sqrt()
     }
@@ -91,7 +91,7 @@ impl Material {
         (self.shear_modulus() / self.density).sqrt()
     }
 
-    /// Local linear-elastic stress `sigma = lambda tr(eps) I + 2 G eps` (MODEL.md eq. 4-5 in
+    /// Local linear-elastic stress `sigma = lambda tr(eps) I + 2 G eps` (docs/MODEL.md eq. 4-5 in
     /// total form) for a symmetric strain given as a full matrix.
     #[inline(always)]
     pub(crate) fn stress(lambda: f64, mu: f64, eps: &crate::mat3::Mat3) -> crate::mat3::Mat3 {

@@ -52,7 +52,7 @@ fn divergence_volume(m: &TetMesh) -> f64 {
 
 #[test]
 fn counts_for_every_level_and_order() {
-    // (tets, linear nodes, quadratic nodes) from the spec / MODEL.md section 7.
+    // (tets, linear nodes, quadratic nodes) from the spec / docs/MODEL.md section 7.
     let expected = [
         (20, 13, 55),
         (80, 43, 205),
@@ -140,7 +140,7 @@ fn level0_volume_matches_icosahedron_closed_form() {
 #[test]
 fn inscribed_volume_ratios() {
     let sphere = PI * D.powi(3) / 6.0;
-    // Level 1 holds 0.8735 of the sphere (MODEL.md section 7), to 4 digits; levels 0 and
+    // Level 1 holds 0.8735 of the sphere (docs/MODEL.md section 7), to 4 digits; levels 0 and
     // 2 are the values quoted in the `Sizing` docs, also to 4 digits.
     for (level, ratio) in [(0, 0.6055), (1, 0.8735), (2, 0.9662)] {
         let m = mesh(level, ElementOrder::Quadratic, Sizing::Inscribed);

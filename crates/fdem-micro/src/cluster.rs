@@ -1,4 +1,4 @@
-//! Clustering node contacts into particle contacts (MODEL.md section 9).
+//! Clustering node contacts into particle contacts (docs/MODEL.md section 9).
 //!
 //! 1. **Nodes.** Rows whose normal force exceeds [`ClusterParams::min_normal_force`]
 //!    (default: any non-zero force). Rows of the same node, body and counterpart are

@@ -1,4 +1,4 @@
-//! Contact-force micro-analysis (MODEL.md section 9, paper section 2.4 and Table 5).
+//! Contact-force micro-analysis (docs/MODEL.md section 9, paper section 2.4 and Table 5).
 //!
 //! In FDEM one particle-particle contact is spread over several surface nodes. This crate
 //! clusters node-level contact forces into particle-level contacts and reports their

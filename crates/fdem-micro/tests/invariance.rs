@@ -1,4 +1,4 @@
-//! Exact scaling (MODEL.md section 4): a snapshot with positions x h and forces x h^2 is
+//! Exact scaling (docs/MODEL.md section 4): a snapshot with positions x h and forces x h^2 is
 //! the same state at another size. The micro-analysis must see the same contacts, a mean
 //! normal force x h^2 and the same normalised distribution (Table 5's "mean contact force
 //! grows as h^2"). Tolerance: 1e-12 relative, round-off of a few hundred additions; the

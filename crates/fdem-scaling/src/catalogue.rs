@@ -1,6 +1,6 @@
 //! The catalogue of named mechanical quantities and their dimensions.
 //!
-//! Every row of the paper's Table 1 (MODEL.md section 4) plus the quantities the scenes and
+//! Every row of the paper's Table 1 (docs/MODEL.md section 4) plus the quantities the scenes and
 //! the triaxial test need. The dimensions are the only thing stated here; scale factors are
 //! always derived from them by a [`ScaleLaw`](crate::ScaleLaw), never tabulated.
 
@@ -36,7 +36,7 @@ const fn q(
 }
 
 /// All named quantities: first the rows of Table 1 in the paper's order, then the
-/// follow-on quantities of MODEL.md section 4.
+/// follow-on quantities of docs/MODEL.md section 4.
 pub const CATALOGUE: &[Quantity] = &[
     // Table 1 of the source paper.
     q("length", "L", "m", 1, 0, 0),

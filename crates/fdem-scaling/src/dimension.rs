@@ -1,4 +1,4 @@
-//! Physical dimensions as exponents of length, time and mass (MODEL.md section 4, eq 7).
+//! Physical dimensions as exponents of length, time and mass (docs/MODEL.md section 4, eq 7).
 
 use std::fmt;
 use std::ops::{Div, Mul};

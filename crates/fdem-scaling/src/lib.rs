@@ -1,6 +1,6 @@
 //! # fdem-scaling: dimensions, quantities and exact-scaling laws
 //!
-//! This crate owns dimensional analysis for the project (MODEL.md section 4, paper eqs 6-11):
+//! This crate owns dimensional analysis for the project (docs/MODEL.md section 4, paper eqs 6-11):
 //! the [`Dimension`] of a mechanical quantity as exponents of length, time and mass; a
 //! [`CATALOGUE`] of named quantities (every row of the paper's Table 1 and the follow-ons
 //! scenes need); and [`ScaleLaw`]s that give the factor of any dimension from three base

@@ -8,7 +8,7 @@ fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-12 * a.abs().max(b.abs())
 }
 
-/// Table 1 of MODEL.md: (quantity, exponent of h), typed in from the paper to check the
+/// Table 1 of docs/MODEL.md: (quantity, exponent of h), typed in from the paper to check the
 /// derivation, which never reads it.
 const TABLE_1: &[(&str, i32)] = &[
     ("length", 1),
@@ -22,7 +22,7 @@ const TABLE_1: &[(&str, i32)] = &[
     ("penalty_stiffness", -1),
     ("friction", 0),
     ("damping", 0),
-    // Follow-ons stated in MODEL.md section 4.
+    // Follow-ons stated in docs/MODEL.md section 4.
     ("density", 0),
     ("velocity", 0),
     ("acceleration", -1),

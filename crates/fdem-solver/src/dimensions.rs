@@ -19,7 +19,7 @@ use fdem_scaling::{Dimension, ScaleLaw, dimension_of};
 /// A factor applied to one field: `(key path, catalogue quantity, factor)`.
 pub type Applied = (String, &'static str, f64);
 
-/// How a field behaves when particles are coarse-grained in a fixed domain (MODEL.md
+/// How a field behaves when particles are coarse-grained in a fixed domain (docs/MODEL.md
 /// section 5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Role {
@@ -35,7 +35,7 @@ pub enum Role {
 
 impl Role {
     /// The factor of a field of this role and `dimension` in coarse graining by the `h`
-    /// of `law` (`ScaleLaw::exact(h)`, MODEL.md section 5): particle sizes take their
+    /// of `law` (`ScaleLaw::exact(h)`, docs/MODEL.md section 5): particle sizes take their
     /// factor; material and contact parameters take theirs only with `exact_scaling`;
     /// domain, loads and times keep 1.
     pub fn coarse_graining_factor(
@@ -176,7 +176,7 @@ impl Scene {
 
     /// The scene scaled by `law`: every field times `law.factor(its dimension)`.
     ///
-    /// With `ScaleLaw::exact(h)` this is the exactly scaled system of MODEL.md section 4:
+    /// With `ScaleLaw::exact(h)` this is the exactly scaled system of docs/MODEL.md section 4:
     /// lengths x h, times and the time step x h, penalty / h, gravity / h, angular
     /// velocities / h, densities, moduli, velocities and dimensionless numbers unchanged.
     /// Returns the scaled scene and, per field, `(key, quantity, factor)`.
@@ -191,7 +191,7 @@ impl Scene {
         (out, applied)
     }
 
-    /// Coarse graining by `h` in the same domain (MODEL.md section 5): particle sizes x h;
+    /// Coarse graining by `h` in the same domain (docs/MODEL.md section 5): particle sizes x h;
     /// domain, loads, velocities and times unchanged; with `exact_scaling` the material and
     /// contact parameters follow Table 1 (`ScaleLaw::exact(h)`), which changes only the
     /// penalty (/ h). Particle positions are kept: where coarse particles go is the specimen

@@ -37,7 +37,7 @@ pub struct Scene {
     pub walls: Vec<WallSection>,
 }
 
-/// `[contact]`: penalty contact (MODEL.md section 2, paper eqs 1-3).
+/// `[contact]`: penalty contact (docs/MODEL.md section 2, paper eqs 1-3).
 ///
 /// The law's parameters take their defaults (the paper's Table 3) and their ranges from
 /// [`ContactParams`]; the TOML reports a value out of range at its line.

@@ -185,7 +185,7 @@ fn damped_impact_books_its_dissipation() {
 
 /// Damping: the rebound speed ratio falls monotonically with beta (paper eq 3), the
 /// undamped bounce returns nearly all the speed (some energy stays in vibration), and
-/// the normal force never pulls the particle back (clamped law, MODEL.md section 2).
+/// the normal force never pulls the particle back (clamped law, docs/MODEL.md section 2).
 #[test]
 fn rebound_speed_falls_with_damping() {
     let betas = [0.0, 0.1, 0.3, 0.6];
@@ -294,7 +294,7 @@ fn fitted_acceleration(t: &[f64], x: &[f64]) -> f64 {
     sol[2]
 }
 
-/// Friction threshold (Coulomb, MODEL.md section 2): on a plane tilted by theta with
+/// Friction threshold (Coulomb, docs/MODEL.md section 2): on a plane tilted by theta with
 /// friction mu, a particle resting on a face sticks when tan(theta) < mu and slides with
 /// acceleration g (sin theta - mu cos theta) otherwise. Level-0 particle (tipping angle
 /// about 21 degrees, far above both test angles), mu = 0.1 (friction angle 5.7 deg),

@@ -250,7 +250,7 @@ fn a_run_writes_complete_consistent_outputs() {
     );
 }
 
-/// Exact scaling of one free body (MODEL.md section 4): geometry x h, time and dt x h,
+/// Exact scaling of one free body (docs/MODEL.md section 4): geometry x h, time and dt x h,
 /// velocities x 1, angular velocities x 1/h. Positions must scale by h and velocities
 /// by 1 at corresponding times, to round-off (1e-9 relative, far above the 1e-16
 /// per-operation round-off accumulated over some hundred steps, far below any physical

@@ -1,4 +1,4 @@
-//! The count rule (MODEL.md section 7): how many particles of each size a specimen holds,
+//! The count rule (docs/MODEL.md section 7): how many particles of each size a specimen holds,
 //! and the elements and nodes of their meshes.
 
 use crate::spec::DEFAULT_SOLID_FRACTION;

@@ -1,6 +1,6 @@
 //! # fdem-triaxial: the numerical triaxial test
 //!
-//! This crate owns the source paper's triaxial test (MODEL.md sections 5-8): what a
+//! This crate owns the source paper's triaxial test (docs/MODEL.md sections 5-8): what a
 //! specimen is, how many particles it holds, how it is prepared, saved and reused, and the
 //! test itself: membrane, platens, consolidation, shear, the measurements of eqs 12-15 and
 //! the outputs (docs/SPECIMENS.md, docs/TRIAXIAL.md).

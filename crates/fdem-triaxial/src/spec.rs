@@ -19,9 +19,9 @@ pub const FRACTION_SUM_TOLERANCE: f64 = 1e-6;
 /// Densest packing of equal spheres, `pi / sqrt(18)`: a nominal solid fraction above it
 /// cannot be reached by any arrangement of the particles.
 pub const DENSEST_PACKING: f64 = 0.740_480_489_693_061;
-/// Nominal solid fraction of the paper's specimens, the default (MODEL.md section 7).
+/// Nominal solid fraction of the paper's specimens, the default (docs/MODEL.md section 7).
 pub const DEFAULT_SOLID_FRACTION: f64 = 0.65;
-/// Inertial number of the default loading velocity (MODEL.md section 8: quasi-static,
+/// Inertial number of the default loading velocity (docs/MODEL.md section 8: quasi-static,
 /// `I <= 1e-3`).
 pub const DEFAULT_INERTIAL_NUMBER: f64 = 1e-3;
 
@@ -177,7 +177,7 @@ pub struct SpecimenSpec {
     /// (`ScaleLaw::exact(h)`: only the penalty changes, by 1/h). Default false.
     #[serde(default)]
     pub exact_scaling: bool,
-    /// Confining pressure of the test (Pa), > 0; default 0.8e6 (MODEL.md section 8).
+    /// Confining pressure of the test (Pa), > 0; default 0.8e6 (docs/MODEL.md section 8).
     #[serde(default = "default_confining", deserialize_with = "positive")]
     pub confining_pressure: f64,
     /// Axial loading velocity of the test (m/s), > 0; default from the inertial number
@@ -253,7 +253,7 @@ pub const PRESETS: &[Preset] = &[
 
 /// Largest simulated particle diameter of both paper series (m): 60 mm in E4/E4s and in
 /// B3/B3s. The presets' loading velocity keeps these coarsest members at the inertial
-/// number 1e-3, so every test of a series shares one velocity (MODEL.md section 5).
+/// number 1e-3, so every test of a series shares one velocity (docs/MODEL.md section 5).
 pub const SERIES_SIZE: f64 = 0.060;
 
 /// Diameter of the original particles of both series (m): 15 mm, and 30 mm for the
@@ -365,7 +365,7 @@ fn default_check_interval() -> u64 {
     100
 }
 
-/// Rock (MODEL.md section 8): 2650 kg/m^3, E = 40 GPa, nu = 0.2.
+/// Rock (docs/MODEL.md section 8): 2650 kg/m^3, E = 40 GPa, nu = 0.2.
 pub fn default_material() -> MaterialSection {
     MaterialSection {
         density: 2650.0,

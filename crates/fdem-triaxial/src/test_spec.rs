@@ -12,7 +12,7 @@ use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 /// of 0.61: beyond it the membrane mesh and the measurement lose meaning).
 pub const MAX_TARGET_STRAIN: f64 = 0.5;
 /// Fewest membrane divisions around the circumference chosen by default (about 40 in the
-/// one open cylindrical-triaxial code with a membrane, MODEL.md section 6).
+/// one open cylindrical-triaxial code with a membrane, docs/MODEL.md section 6).
 pub const MIN_DIVISIONS_AROUND: usize = 40;
 /// Default membrane node spacing as a fraction of the smallest simulated particle
 /// diameter: three nodes per particle diameter, so a particle touches several membrane

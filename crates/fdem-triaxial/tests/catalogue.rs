@@ -7,7 +7,7 @@ use fdem_triaxial::{
 };
 use rand::SeedableRng;
 
-/// Table 2 of the paper (MODEL.md section 7): particles, elements, nodes.
+/// Table 2 of the paper (docs/MODEL.md section 7): particles, elements, nodes.
 const TABLE_2: &[(&str, u64, u64, u64)] = &[
     ("E1", 15186, 1214880, 3113130),
     ("E2", 1898, 151840, 389090),

@@ -4,7 +4,7 @@ use std::collections::HashMap;
 
 use fdem_elastic::{ElementSet, Mat3, Material};
 
-/// Rock of MODEL.md section 8: E = 40 GPa, nu = 0.2, rho = 2650 kg/m^3.
+/// Rock of docs/MODEL.md section 8: E = 40 GPa, nu = 0.2, rho = 2650 kg/m^3.
 pub const E: f64 = 40e9;
 pub const NU: f64 = 0.2;
 pub const RHO: f64 = 2650.0;

@@ -96,7 +96,7 @@ fn single_linear_tet_bound_matches_power_iteration_and_wave_speed_estimate() {
     // unless the two top eigenvalues are within 0.3 %; tolerance 1e-9 relative.
     assert!(((dt - dt_power) / dt).abs() < 1e-9, "{dt} vs {dt_power}");
 
-    // Order-of-magnitude check against MODEL.md section 11: dt ~ h_min / c_p with h_min the
+    // Order-of-magnitude check against docs/MODEL.md section 11: dt ~ h_min / c_p with h_min the
     // smallest altitude (3 V / largest face area).
     let p = &mesh.nodes;
     let faces = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
@@ -116,7 +116,7 @@ fn single_linear_tet_bound_matches_power_iteration_and_wave_speed_estimate() {
         h_min / rock().p_wave_speed()
     );
     // Measured ratio 0.53 for this element (a regular tetrahedron gives a similar value):
-    // the bound is of the order of h_min / c_p, as MODEL.md says.
+    // the bound is of the order of h_min / c_p, as docs/MODEL.md says.
     assert!((0.3..1.0).contains(&ratio), "{ratio}");
 }
 

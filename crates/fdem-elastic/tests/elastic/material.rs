@@ -42,7 +42,7 @@ fn validate_catches_fields_edited_after_construction() {
 
 #[test]
 fn lame_constants_and_wave_speeds_match_hand_values() {
-    // Hand values for E = 40 GPa, nu = 0.2, rho = 2650 (MODEL.md section 3):
+    // Hand values for E = 40 GPa, nu = 0.2, rho = 2650 (docs/MODEL.md section 3):
     // lambda = 40e9 * 0.2 / (1.2 * 0.6) = 1e11/9, G = 40e9 / 2.4 = 5e10/3,
     // c_p = sqrt((lambda + 2G)/rho) = sqrt(4e11/9/2650) = 4095.3007788930 m/s,
     // c_s = sqrt(G/rho) = sqrt(5e10/3/2650) = 2507.8493128776 m/s.
