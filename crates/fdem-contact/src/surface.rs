@@ -118,6 +118,14 @@ impl ContactSurface {
     /// [`ContactError::InconsistentSurface`], [`ContactError::InvalidControlArea`] or
     /// [`ContactError::TooLarge`].
     pub fn validate(&self, n_nodes: usize) -> Result<Vec<u32>, ContactError> {
+        self.check_sizes(n_nodes)?;
+        let slot = self.surface_slots(n_nodes)?;
+        self.check_triangles(&slot)?;
+        Ok(slot)
+    }
+
+    /// Counts within the index widths and parallel arrays of equal lengths.
+    fn check_sizes(&self, n_nodes: usize) -> Result<(), ContactError> {
         let n_surface = self.surface_nodes.len();
         // Keys pack the surface index into 31 bits (see the model's history keys).
         let limit = (1usize << 31) - 1;
@@ -172,6 +180,12 @@ impl ContactSurface {
             n_surface,
             "one control area per surface node",
         )?;
+        Ok(())
+    }
+
+    /// The map from global node to surface-node index; every surface node listed once,
+    /// in range, with a finite positive control area.
+    fn surface_slots(&self, n_nodes: usize) -> Result<Vec<u32>, ContactError> {
         let mut slot = vec![u32::MAX; n_nodes];
         for (k, &node) in self.surface_nodes.iter().enumerate() {
             if node >= n_nodes {
@@ -197,6 +211,12 @@ impl ContactSurface {
                 });
             }
         }
+        Ok(slot)
+    }
+
+    /// Every triangle vertex a surface node of the triangle's own body.
+    fn check_triangles(&self, slot: &[u32]) -> Result<(), ContactError> {
+        let n_nodes = slot.len();
         for (t, (tri, &body)) in self.triangles.iter().zip(&self.triangle_body).enumerate() {
             for &node in tri {
                 if node >= n_nodes {
@@ -226,7 +246,7 @@ impl ContactSurface {
                 }
             }
         }
-        Ok(slot)
+        Ok(())
     }
 
     /// Shortest edge (m) of the triangles at the given node positions, `None` without
