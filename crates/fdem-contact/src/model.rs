@@ -465,23 +465,7 @@ impl ContactModel {
                 ),
             });
         }
-        let now = wall.shape_at(time);
-        let back = scale(velocity, -time);
-        wall.shape = match now {
-            WallShape::Plane { point, normal } => WallShape::Plane {
-                point: add(point, back),
-                normal,
-            },
-            WallShape::Cylinder {
-                axis_point,
-                axis,
-                radius,
-            } => WallShape::Cylinder {
-                axis_point: add(axis_point, back),
-                axis,
-                radius,
-            },
-        };
+        wall.shape = wall.shape_at(time).translated(scale(velocity, -time));
         wall.velocity = velocity;
         Ok(())
     }

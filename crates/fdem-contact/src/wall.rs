@@ -133,8 +133,14 @@ impl Wall {
 
     /// The shape translated to time `t` (position = initial + velocity * t).
     pub fn shape_at(&self, time: f64) -> WallShape {
-        let shift = scale(self.velocity, time);
-        match self.shape {
+        self.shape.translated(scale(self.velocity, time))
+    }
+}
+
+impl WallShape {
+    /// The shape moved by `shift` (m).
+    pub fn translated(self, shift: [f64; 3]) -> WallShape {
+        match self {
             WallShape::Plane { point, normal } => WallShape::Plane {
                 point: add(point, shift),
                 normal,

@@ -156,13 +156,19 @@ pub(crate) fn tet4_add_forces(
         -(f1[1] + f2[1] + f3[1]),
         -(f1[2] + f2[2] + f3[2]),
     ];
-    for (n, fa) in el.nodes.iter().zip([f0, f1, f2, f3]) {
+    scatter(&el.nodes, [f0, f1, f2, f3], forces);
+    Ok(())
+}
+
+/// Adds the element's node forces `f` to the body's `forces` at its nodes.
+#[inline(always)]
+fn scatter<const N: usize>(nodes: &[u32; N], f: [[f64; 3]; N], forces: &mut [[f64; 3]]) {
+    for (n, fa) in nodes.iter().zip(f) {
         let t = &mut forces[*n as usize];
         t[0] += fa[0];
         t[1] += fa[1];
         t[2] += fa[2];
     }
-    Ok(())
 }
 
 /// Strain energy `V (G eps:eps + lambda/2 tr(eps)^2) = (V/2) eps:sigma` (= `u^T K u / 2`).
@@ -424,12 +430,7 @@ pub(crate) fn tet10_add_forces(
         o[1] += c[1];
         o[2] += c[2];
     }
-    for (n, fa) in el.nodes.iter().zip(out) {
-        let t = &mut forces[*n as usize];
-        t[0] += fa[0];
-        t[1] += fa[1];
-        t[2] += fa[2];
-    }
+    scatter(&el.nodes, out, forces);
     Ok(())
 }
 
