@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::MeshError;
-use crate::geometry::{dihedral_angle, distance, tet_signed_volume, triangle_area};
+use crate::geometry::{dihedral_angle, distance, sub, tet_signed_volume, triangle_area};
 
 /// Polynomial order of the tetrahedral elements.
 ///
@@ -58,6 +58,52 @@ pub struct TetMesh {
     pub surface: Surface,
 }
 
+/// Volume integrals of a solid shape: what a rigid body's mass properties are made of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VolumeProperties {
+    /// Volume `V = int dV` (m^3).
+    pub volume: f64,
+    /// Centroid `c = int x dV / V` (m).
+    pub centroid: [f64; 3],
+    /// Second moment about the centroid, `S = int (x - c)(x - c)^T dV` (m^5).
+    pub second_moment: [[f64; 3]; 3],
+}
+
+impl VolumeProperties {
+    /// Inertia tensor about the centroid of the shape filled with density `rho`
+    /// (kg m^2): `I = rho (tr(S) 1 - S)`.
+    pub fn inertia(&self, rho: f64) -> [[f64; 3]; 3] {
+        let s = &self.second_moment;
+        let trace = s[0][0] + s[1][1] + s[2][2];
+        let mut out = [[0.0; 3]; 3];
+        for j in 0..3 {
+            for k in 0..3 {
+                let delta = if j == k { trace } else { 0.0 };
+                out[j][k] = rho * (delta - s[j][k]);
+            }
+        }
+        out
+    }
+}
+
+/// Volume, first and second moments about the origin of the tetrahedron `v` (corners
+/// relative to the origin): `V`, `int x dV = V s / 4` and
+/// `int x x^T dV = V / 20 (sum_i v_i v_i^T + s s^T)` with `s = sum_i v_i` (the exact
+/// quadrature of quadratics over a simplex).
+fn tet_moments(v: [[f64; 3]; 4]) -> (f64, [f64; 3], [[f64; 3]; 3]) {
+    let volume = tet_signed_volume(v[0], v[1], v[2], v[3]);
+    let s = [0, 1, 2].map(|k| v[0][k] + v[1][k] + v[2][k] + v[3][k]);
+    let first = s.map(|sk| volume * sk / 4.0);
+    let mut second = [[0.0; 3]; 3];
+    for (j, row) in second.iter_mut().enumerate() {
+        for (k, out) in row.iter_mut().enumerate() {
+            let corners: f64 = v.iter().map(|x| x[j] * x[k]).sum();
+            *out = volume / 20.0 * (corners + s[j] * s[k]);
+        }
+    }
+    (volume, first, second)
+}
+
 impl TetMesh {
     /// Number of nodes.
     pub fn n_nodes(&self) -> usize {
@@ -109,6 +155,43 @@ impl TetMesh {
                 tet_signed_volume(a, b, c, d)
             })
             .sum()
+    }
+
+    /// Volume, centroid and second moment of the solid meshed shape, integrated exactly
+    /// over the tetrahedra (straight edges: the corner nodes define each element, as in
+    /// [`TetMesh::volume`]). The mass properties of a rigid particle of density `rho` are
+    /// `rho` times these ([`VolumeProperties::inertia`]).
+    ///
+    /// # Panics
+    /// If a node id is out of range (see [`TetMesh::validate`]).
+    pub fn volume_properties(&self) -> VolumeProperties {
+        // Integrals relative to the first node keep the round-off of far-off meshes small.
+        let origin = self.nodes.first().copied().unwrap_or([0.0; 3]);
+        let (mut volume, mut first, mut second) = (0.0, [0.0; 3], [[0.0; 3]; 3]);
+        for e in 0..self.n_elements() {
+            let v = self.corners(e).map(|x| sub(x, origin));
+            let tet = tet_moments(v);
+            volume += tet.0;
+            for j in 0..3 {
+                first[j] += tet.1[j];
+                for k in 0..3 {
+                    second[j][k] += tet.2[j][k];
+                }
+            }
+        }
+        let c = first.map(|f| f / volume);
+        // Parallel-axis shift to the centroid: S_c = S_o - V c c^T.
+        let mut second_moment = second;
+        for j in 0..3 {
+            for k in 0..3 {
+                second_moment[j][k] -= volume * c[j] * c[k];
+            }
+        }
+        VolumeProperties {
+            volume,
+            centroid: [c[0] + origin[0], c[1] + origin[1], c[2] + origin[2]],
+            second_moment,
+        }
     }
 
     /// Checks that the arrays fit together: the element array is a whole number of
