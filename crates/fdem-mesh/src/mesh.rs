@@ -75,14 +75,12 @@ impl VolumeProperties {
     pub fn inertia(&self, rho: f64) -> [[f64; 3]; 3] {
         let s = &self.second_moment;
         let trace = s[0][0] + s[1][1] + s[2][2];
-        let mut out = [[0.0; 3]; 3];
-        for j in 0..3 {
-            for k in 0..3 {
+        std::array::from_fn(|j| {
+            std::array::from_fn(|k| {
                 let delta = if j == k { trace } else { 0.0 };
-                out[j][k] = rho * (delta - s[j][k]);
-            }
-        }
-        out
+                rho * (delta - s[j][k])
+            })
+        })
     }
 }
 
@@ -174,17 +172,17 @@ impl TetMesh {
             volume += tet.0;
             for j in 0..3 {
                 first[j] += tet.1[j];
-                for k in 0..3 {
-                    second[j][k] += tet.2[j][k];
+                for (s, t) in second[j].iter_mut().zip(tet.2[j]) {
+                    *s += t;
                 }
             }
         }
         let c = first.map(|f| f / volume);
         // Parallel-axis shift to the centroid: S_c = S_o - V c c^T.
         let mut second_moment = second;
-        for j in 0..3 {
-            for k in 0..3 {
-                second_moment[j][k] -= volume * c[j] * c[k];
+        for (row, cj) in second_moment.iter_mut().zip(c) {
+            for (s, ck) in row.iter_mut().zip(c) {
+                *s -= volume * cj * ck;
             }
         }
         VolumeProperties {
