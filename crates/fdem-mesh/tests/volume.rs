@@ -2,6 +2,9 @@
 //! tetrahedra (exact to round-off), the icosahedral symmetry of the sphere meshes
 //! (isotropic inertia), and linear and quadratic meshes of one level (the same solid).
 
+// Tensor components read best with their indices.
+#![allow(clippy::needless_range_loop)]
+
 use fdem_mesh::{ElementOrder, Sizing, SphereSpec, Surface, TetMesh, sphere_mesh};
 
 /// A box `[x0, x0 + a] x [y0, y0 + b] x [z0, z0 + c]` cut into the six tetrahedra of
