@@ -23,6 +23,7 @@ mod error;
 mod forces;
 mod model;
 pub mod output;
+mod rigid;
 mod run;
 mod scene;
 mod state;
@@ -41,6 +42,7 @@ pub use model::{
     BodyId, ConstraintHandle, ContactSettings, Handle, InitialMotion, ModelBuilder, SheetBody,
     WallId,
 };
+pub use rigid::{RigidInertia, RigidState};
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
     ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,

@@ -1,0 +1,176 @@
+//! Rigid bodies: their mass properties and the explicit integrator of their motion.
+//!
+//! A rigid body moves with six degrees of freedom: its centre of mass with velocity
+//! Verlet, like every node, and its orientation (a unit quaternion from the body's
+//! principal frame to the world) with the symmetric splitting of the free rigid body of
+//! Dullweber, Leimkuhler and McLachlan (J. Chem. Phys. 107, 1997; the NO_SQUISH scheme
+//! of Miller et al., J. Chem. Phys. 116, 2002, is the same splitting in quaternions).
+//! The angular momentum is kept in the principal frame, `pi = R^T L`; a step is
+//!
+//! 1. half kick: `v += dt/2 F / m`, `pi += dt/2 R^T tau`;
+//! 2. drift: `x += dt v`, then the free rotation as exact rotations about the principal
+//!    axes in the order 1 (dt/2), 2 (dt/2), 3 (dt), 2 (dt/2), 1 (dt/2);
+//! 3. forces and torques at the new pose;
+//! 4. half kick.
+//!
+//! Each sub-rotation is the exact flow of one term `pi_k^2 / (2 I_k)` of the kinetic
+//! energy: the body turns by `phi = t pi_k / I_k` about axis `k` and `pi` turns by
+//! `-phi` about the same axis, so `L = R pi` is unchanged to round-off. The composition
+//! is symplectic and second order, so with no torque the angular momentum is conserved
+//! exactly (gyroscopic term included: it is the rotation of `pi` in the body frame) and
+//! the energy error stays bounded at `O(dt^2)` instead of drifting as Euler's method on
+//! `omega` does.
+
+use crate::SolverError;
+use nalgebra::{Matrix3, SymmetricEigen, Unit, UnitQuaternion, Vector3};
+
+/// Mass properties of a rigid body.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidInertia {
+    /// Mass (kg).
+    pub mass: f64,
+    /// Principal moments of inertia about the centre of mass (kg m^2), > 0.
+    pub principal: [f64; 3],
+    /// Rotation from the principal frame to the frame the inertia tensor was given in,
+    /// as a unit quaternion `[w, x, y, z]`.
+    pub principal_frame: [f64; 4],
+}
+
+impl RigidInertia {
+    /// The principal moments and axes of the inertia tensor `inertia` (kg m^2, about the
+    /// centre of mass) of a body of mass `mass`.
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidScene`] for a mass or a principal moment that is not finite
+    /// and > 0.
+    pub fn new(mass: f64, inertia: [[f64; 3]; 3]) -> Result<RigidInertia, SolverError> {
+        let tensor = Matrix3::from_fn(|j, k| 0.5 * (inertia[j][k] + inertia[k][j]));
+        let eigen = SymmetricEigen::new(tensor);
+        let principal = [0, 1, 2].map(|k| eigen.eigenvalues[k]);
+        if !(mass.is_finite() && mass > 0.0)
+            || principal.iter().any(|&i| !(i.is_finite() && i > 0.0))
+        {
+            return Err(SolverError::InvalidScene(format!(
+                "a rigid body needs a finite positive mass and principal moments; got mass \
+                 {mass:e} kg and moments {principal:?} kg m^2"
+            )));
+        }
+        let mut axes = eigen.eigenvectors;
+        if axes.determinant() < 0.0 {
+            axes.column_mut(2).neg_mut();
+        }
+        let rotation = nalgebra::Rotation3::from_matrix_unchecked(axes);
+        let q = UnitQuaternion::from_rotation_matrix(&rotation);
+        Ok(RigidInertia {
+            mass,
+            principal,
+            principal_frame: [q.w, q.i, q.j, q.k],
+        })
+    }
+}
+
+/// The pose and momenta of a rigid body.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidState {
+    /// Centre of mass (m).
+    pub position: [f64; 3],
+    /// Velocity of the centre of mass (m/s).
+    pub velocity: [f64; 3],
+    /// Rotation from the principal frame to the world, unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
+    /// Angular momentum about the centre of mass in the principal frame, `R^T L`
+    /// (kg m^2/s).
+    pub body_momentum: [f64; 3],
+}
+
+fn quaternion(q: [f64; 4]) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]))
+}
+
+fn array(v: Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+impl RigidState {
+    /// A body at `position` moving at `velocity` and spinning at `angular_velocity`
+    /// (world frame, rad/s), oriented by `orientation` (principal frame to world).
+    pub fn new(
+        inertia: &RigidInertia,
+        position: [f64; 3],
+        velocity: [f64; 3],
+        orientation: [f64; 4],
+        angular_velocity: [f64; 3],
+    ) -> RigidState {
+        let q = quaternion(orientation);
+        let w = q.inverse_transform_vector(&Vector3::from(angular_velocity));
+        let i = inertia.principal;
+        RigidState {
+            position,
+            velocity,
+            orientation: [q.w, q.i, q.j, q.k],
+            body_momentum: [i[0] * w.x, i[1] * w.y, i[2] * w.z],
+        }
+    }
+
+    /// Half kick (or any kick of duration `h`): `v += h F / m`, `pi += h R^T tau` with the
+    /// force `force` (N) and the torque `torque` about the centre of mass (N m), both in
+    /// the world frame.
+    pub fn kick(&mut self, inertia: &RigidInertia, force: [f64; 3], torque: [f64; 3], h: f64) {
+        for (v, f) in self.velocity.iter_mut().zip(force) {
+            *v += h * f / inertia.mass;
+        }
+        let t = quaternion(self.orientation).inverse_transform_vector(&Vector3::from(torque));
+        for (p, t) in self.body_momentum.iter_mut().zip(t.iter()) {
+            *p += h * t;
+        }
+    }
+
+    /// Drift over `dt`: the centre moves with its velocity; the orientation follows the
+    /// free rotation by the symmetric splitting of the module docs.
+    pub fn drift(&mut self, inertia: &RigidInertia, dt: f64) {
+        for (x, v) in self.position.iter_mut().zip(self.velocity) {
+            *x += dt * v;
+        }
+        let mut q = quaternion(self.orientation);
+        let mut pi = Vector3::from(self.body_momentum);
+        for (axis, t) in [(0, 0.5), (1, 0.5), (2, 1.0), (1, 0.5), (0, 0.5)] {
+            let phi = t * dt * pi[axis] / inertia.principal[axis];
+            let turn =
+                UnitQuaternion::from_axis_angle(&Unit::new_unchecked(Vector3::ith(axis, 1.0)), phi);
+            pi = turn.inverse_transform_vector(&pi);
+            q *= turn;
+        }
+        q.renormalize();
+        self.orientation = [q.w, q.i, q.j, q.k];
+        self.body_momentum = array(pi);
+    }
+
+    /// Angular velocity in the world frame (rad/s), `R I^-1 pi`.
+    pub fn angular_velocity(&self, inertia: &RigidInertia) -> [f64; 3] {
+        let i = inertia.principal;
+        let pi = self.body_momentum;
+        let w = Vector3::new(pi[0] / i[0], pi[1] / i[1], pi[2] / i[2]);
+        array(quaternion(self.orientation).transform_vector(&w))
+    }
+
+    /// Angular momentum about the centre of mass in the world frame (kg m^2/s), `R pi`.
+    pub fn angular_momentum(&self) -> [f64; 3] {
+        array(quaternion(self.orientation).transform_vector(&Vector3::from(self.body_momentum)))
+    }
+
+    /// Kinetic energy `m |v|^2 / 2 + sum_k pi_k^2 / (2 I_k)` (J).
+    pub fn kinetic_energy(&self, inertia: &RigidInertia) -> f64 {
+        let v = self.velocity;
+        let pi = self.body_momentum;
+        let i = inertia.principal;
+        0.5 * inertia.mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            + 0.5 * (pi[0] * pi[0] / i[0] + pi[1] * pi[1] / i[1] + pi[2] * pi[2] / i[2])
+    }
+
+    /// World position of the point at `offset` from the centre of mass in the principal
+    /// frame (m).
+    pub fn point(&self, offset: [f64; 3]) -> [f64; 3] {
+        let r = quaternion(self.orientation).transform_vector(&Vector3::from(offset));
+        [0, 1, 2].map(|k| self.position[k] + r[k])
+    }
+}
