@@ -286,8 +286,9 @@ fn the_control_case_scales_exactly() {
 }
 
 /// Where exact scaling fails: leaving gravity unscaled (g instead of g / h) breaks the
-/// invariance. Measured on the collision scene with g = 1000 m/s^2 and h = 3: positions
-/// deviate by more than 1e-6 of their scale, over a thousand times the tolerance.
+/// invariance. On the collision scene with g = 1000 m/s^2 and h = 3 the test asserts that
+/// positions deviate by more than 1e-6 of their scale, over a thousand times the tolerance
+/// (docs/SCALING.md, "Where it fails", has the measured deviation).
 #[test]
 fn unscaled_gravity_breaks_invariance() {
     let h = 3.0;
@@ -300,8 +301,9 @@ fn unscaled_gravity_breaks_invariance() {
 }
 
 /// Leaving the penalty unscaled (p_n instead of p_n / h): contacts are h times too stiff,
-/// so the collision differs at order one. Measured on the collision scene, h = 3:
-/// velocities deviate by more than 1 % of their scale.
+/// so the collision differs at order one. On the collision scene, h = 3, the test asserts
+/// that velocities deviate by more than 1 % of their scale (docs/SCALING.md, "Where it
+/// fails", has the measured deviation).
 #[test]
 fn unscaled_penalty_breaks_invariance() {
     let h = 3.0;

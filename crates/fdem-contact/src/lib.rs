@@ -61,7 +61,8 @@
 //!   node; none when a nearer face of that body covers the node from the front (closest
 //!   face), or when a sheet hit is deeper than the fold depth. The hand-written
 //!   projection is the default kernel; the parry3d-f64 one (`ProjectionKernel::Parry`)
-//!   gives the same contacts and was about 4x slower per pair in the `contact` bench.
+//!   gives the same contacts and is slower per pair (docs/PERFORMANCE.md, "Narrow phase:
+//!   hand-written projection versus parry3d-f64").
 //! - Tangential history is keyed by (node, other body or wall), so it survives a switch of
 //!   face on the same body, and is dropped when the contact opens.
 //! - Parallelism (rayon): surface nodes are processed in fixed chunks of 512, each chunk

@@ -390,8 +390,9 @@ impl ContactModel {
 
     /// A margin of [`MARGIN_EDGE_FRACTION`] (0.1) times the shortest surface edge at the
     /// given positions; `None` without triangles. Large against typical penetrations
-    /// (about 1e-3 of a particle diameter for the paper's parameters), small against the
-    /// particles, so that the depth limit (= margin) never reaches through a particle.
+    /// (of the order of 1e-3 of a particle diameter for the paper's parameters:
+    /// docs/SPECIMENS.md, "Why 2 % overlap"), small against the particles, so that the
+    /// depth limit (= margin) never reaches through a particle.
     pub fn suggested_margin(surface: &ContactSurface, positions: &[[f64; 3]]) -> Option<f64> {
         surface
             .shortest_edge(positions)

@@ -7,7 +7,9 @@
 //! projection ([`project_hand`]) and one built on parry's
 //! `PointQueryWithLocation` for triangles ([`project_parry`]). They agree except within the
 //! tolerance band along the edges (tested); [`ProjectionKernel`] selects one, the default
-//! being the faster one measured by the `contact` criterion bench.
+//! being the hand-written one, which exits early for most candidates (docs/PERFORMANCE.md,
+//! "Narrow phase: hand-written projection versus parry3d-f64", has the `contact` bench's
+//! timings).
 
 use parry3d_f64::math::Vector;
 use parry3d_f64::query::PointQueryWithLocation;
@@ -39,8 +41,9 @@ pub struct FaceHit {
 #[serde(rename_all = "snake_case")]
 pub enum ProjectionKernel {
     /// [`project_hand`]: plane distance first (early exit for nodes in front of the face or
-    /// too deep), then barycentrics from two triple products. The default: faster in the
-    /// `contact` bench.
+    /// too deep), then barycentrics from two triple products. The default: most candidates
+    /// end at the plane test (docs/PERFORMANCE.md, "Narrow phase: hand-written projection
+    /// versus parry3d-f64").
     #[default]
     Hand,
     /// [`project_parry`]: parry3d-f64's `Triangle::project_local_point_and_get_location`

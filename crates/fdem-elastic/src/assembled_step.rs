@@ -4,9 +4,10 @@
 //! eigenvalue of `M^-1/2 K M^-1/2` of the *assembled* body (docs/MODEL.md section 11). The
 //! element bound ([`ElementSet::stable_time_step`]) never exceeds it (element eigenvalue
 //! inequality) and is often well below it, because an element's nodes carry only that
-//! element's share of mass: 1.27 times below for a level-1 linear particle. This module
-//! estimates the assembled bound itself, the "global estimate" of explicit codes (Abaqus/
-//! Explicit, LS-DYNA), so that a run does not pay for the element bound's pessimism.
+//! element's share of mass (docs/VERIFICATION.md, "Free particles in explicit dynamics",
+//! has the ratio for a level-1 linear particle). This module estimates the assembled bound
+//! itself, the "global estimate" of explicit codes (Abaqus/Explicit, LS-DYNA), so that a
+//! run does not pay for the element bound's pessimism.
 //!
 //! Method: power iteration `y <- A y / |A y|` with `A = M^-1/2 K M^-1/2`, `K` the rest
 //! stiffness (the co-rotational tangent at rest), applied element by element from the
@@ -52,9 +53,8 @@ impl ElementSet {
     /// [module documentation](self)): power iteration on `M^-1/2 K M^-1/2` with the rest
     /// stiffness. A set without elements gives `+inf`.
     ///
-    /// Cost: the element matrices once, then one sparse product per iteration (measured
-    /// with `cargo bench -p fdem-benches --bench setup`: a level-1 particle, 80 elements,
-    /// 1.85 ms in 133 iterations linear, 16.3 ms in 176 quadratic).
+    /// Cost: the element matrices once, then one sparse product per iteration
+    /// (docs/PERFORMANCE.md, "Setting up", has the timing of a level-1 particle).
     pub fn assembled_time_step(&self) -> AssembledStep {
         let n = self.n_nodes();
         let element_time_step = self.stable_time_step();

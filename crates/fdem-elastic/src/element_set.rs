@@ -100,8 +100,8 @@ impl ElementSet {
     /// An empty connectivity gives an empty set whose stable time step is `+inf`.
     ///
     /// Cost: one symmetric eigenvalue problem per element for the stable time step (6x6 for
-    /// linear, 24x24 for quadratic elements): about 2 us and 30 us per element in a release
-    /// build.
+    /// linear, 24x24 for quadratic elements; docs/PERFORMANCE.md, "Setting up", has its
+    /// timing).
     pub fn new(
         material: &Material,
         nodes_per_element: usize,

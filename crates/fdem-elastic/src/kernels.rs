@@ -581,8 +581,8 @@ fn mandel_c_sqrt(lame: Lame) -> SMatrix<f64, 6, 6> {
 ///
 /// `K = sum_q w_q B_q^T C B_q = G^T G` with `G` the rows `sqrt(w_q) C^{1/2} B_q` stacked, so
 /// the non-zero eigenvalues of `M^{-1/2} K M^{-1/2}` (12x12 or 30x30) are those of the
-/// smaller `G M^{-1} G^T` (6x6 for one point, 24x24 for four): the same numbers for about a
-/// third to a half of the cost.
+/// smaller `G M^{-1} G^T` (6x6 for one point, 24x24 for four): the same numbers from a
+/// smaller problem (docs/PERFORMANCE.md, "Setting up").
 pub(crate) fn element_time_step<const N: usize>(el: &TetRef<N>, lame: Lame, density: f64) -> f64 {
     let m_e = density * el.volume;
     let g = el.grads4();

@@ -21,7 +21,8 @@
 //! absolute error below `1e-14` (a stress error below `1e-14 E`, 4e-4 Pa for rock), and
 //! a rigid rotation (`r ~ 1e-16` from the start) is recovered to round-off in one step.
 //! Elastic strains of `1e-4` take two steps, `1e-3` three. (Iterating to `r < 1e-8`
-//! instead costs one more step for strains around `1e-4`, about 10 % of the linear kernel.)
+//! instead costs one more step for strains around `1e-4`, a noticeable share of the linear
+//! kernel's time: docs/PERFORMANCE.md, "Elastic particles: one full step".)
 //!
 //! A warm start from the previous step's rotation does not help these iterations: their
 //! convergence depends only on the singular values of `F`, which a rotation does not change.

@@ -4,15 +4,16 @@
 //! kiddo k-d tree for larger ones, rather than petal-clustering: the clouds are the
 //! force-carrying nodes of one particle and one counterpart, a few to a few dozen points,
 //! thousands of them per snapshot, and on those petal-clustering 0.14 (a ball tree, hash
-//! maps and a rayon loop per call) measured 13-36 times slower with identical partitions;
-//! it would also bring ndarray into the workspace (docs/MICRO.md, "Why not
-//! petal-clustering").
+//! maps and a rayon loop per call) pays its set-up per call and is much slower with
+//! identical partitions; it would also bring ndarray into the workspace (docs/MICRO.md,
+//! "Why not petal-clustering (measured)", has the timings).
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 /// Clouds up to this size are searched by brute force (all pairs), larger ones with a
-/// k-d tree. Measured (`benches/micro.rs`, `dbscan_cloud`): brute force is faster up to
-/// 64 points (8.1 vs 10.7 us), the tree from 128 (31 vs 36 us).
+/// k-d tree: the tree's build pays off only on larger clouds, and this limit lies between
+/// the sizes where each search was measured faster (`benches/micro.rs`, `dbscan_cloud`;
+/// docs/MICRO.md, "Why not petal-clustering (measured)", has the timings).
 pub const BRUTE_FORCE_LIMIT: usize = 96;
 
 /// A k-d tree over `points` (items are the indices); `None` if kiddo refuses the points

@@ -55,9 +55,8 @@ impl StepBound {
     /// contact springs of the surface nodes): `1/dt^2 = 1/dt_a^2 + 1/dt_b^2`, because the
     /// largest eigenvalue of a sum of positive semi-definite matrices is at most the sum of
     /// their largest eigenvalues (Weyl's inequality; `omega^2 = 4 / dt^2`). Where the
-    /// contact springs are soft next to the elements (E4s: contact 3.341e-5 s, assembled
-    /// elastic 3.219e-6 s, combined 3.204e-6 s as the test prints) it is the elastic bound
-    /// less 0.5 %;
+    /// contact springs are soft next to the elements, as in the paper's specimens, it is
+    /// barely below the elastic bound (docs/TRIAXIAL.md, "Time step", has the E4s bounds);
     /// where they are as stiff (soft grains, a stiff penalty) the smallest of the two would
     /// overestimate the stable step by up to `sqrt(2)`.
     pub fn combined(a: Option<StepBound>, b: Option<StepBound>) -> Option<StepBound> {

@@ -73,7 +73,8 @@ fn collide(sim: &mut Simulation) -> (usize, f64) {
 /// at the contact point, a depth d_n away from the node, leaving a couple d_n |F_s|
 /// (fdem-contact crate docs). Its angular impulse is at most (deepest penetration) x
 /// (tangential impulse <= P), so the drift relative to P x size is bounded by
-/// deepest / size, which the test asserts (measured: 2.6e-4 at friction 0.3).
+/// deepest / size, which the test asserts (docs/VERIFICATION.md, "Contact in whole
+/// simulations", has the measured drift).
 #[test]
 fn oblique_collision_conserves_momentum() {
     for friction in [0.0, 0.3] {
@@ -334,10 +335,11 @@ fn friction_threshold_on_a_tilted_plane() {
 /// floor, under gravity of 2e4 m/s^2 (each particle weighs about 82 N, so the bottom
 /// contact carries about 250 N, near the paper's mean contact force at the peak). Every
 /// step the deepest node penetration (into another particle or a wall) stays below 2 % of
-/// the particle diameter (measured: 0.99 %, a single node taking the floor's load at
-/// k_n = p_n A), and the column's vertical momentum changes exactly by the impulse of
-/// gravity, floor and cylinder (trapezoidal impulse, as velocity Verlet applies it;
-/// 1e-9 relative to the weight's impulse).
+/// the particle diameter (a single node can take the floor's load at k_n = p_n A;
+/// docs/VERIFICATION.md, "Contact in whole simulations", has the measured depth), and the
+/// column's vertical momentum changes exactly by the impulse of gravity, floor and
+/// cylinder (trapezoidal impulse, as velocity Verlet applies it; 1e-9 relative to the
+/// weight's impulse).
 #[test]
 fn loaded_column_never_interpenetrates() {
     let (d, g) = (0.015, 2.0e4);

@@ -218,10 +218,11 @@ fn breathing_x(level: u32, order: &str) -> f64 {
 /// breathe as `u ~ r`; with consistent mass its frequency would be the Rayleigh quotient
 /// `x = sqrt(15 K / (lambda + 2G)) = 2.739`, and row-sum lumping moves 3/4 of the mass to
 /// the surface, giving `x = 2.739 sqrt(0.6 / 0.75) = 2.449` in the fine-level limit, which
-/// level 1 to 2 approach from below. The 10-node mesh adds an `r^2` term. Measured
-/// (this test prints them): linear 2.359 / 2.426 (levels 1 / 2), quadratic 2.438 / 2.527.
-/// All lie within 5 % of Lamb (worst: linear level 1, -4.1 %); a mistake in mass, stiffness or integration shows as tens
-/// of percent. Radial refinement would need a different particle mesh (not the paper's).
+/// level 1 to 2 approach from below. The 10-node mesh adds an `r^2` term. The test prints
+/// the measured values (docs/VERIFICATION.md, "Free particles in explicit dynamics", lists
+/// them): all lie within 5 % of Lamb, while a mistake in mass, stiffness or integration
+/// shows as tens of percent. Radial refinement would need a different particle mesh (not
+/// the paper's).
 #[test]
 fn breathing_frequency_against_lamb() {
     let lamb = lamb_breathing_x(NU);

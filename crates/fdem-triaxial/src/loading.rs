@@ -27,29 +27,28 @@ use fdem_solver::{
 /// reported in `curve.csv` and `summary.json`). The balance drifts during the test without
 /// anything going unstable: steadily while the membrane sinks into the surface voids in
 /// consolidation and while E4s is sheared, in bursts while particles rearrange; the
-/// kinetic energy stays at a few joules (docs/TRIAXIAL.md, "Energy balance"; the source is
-/// not isolated yet). The largest drift measured in one window was 0.14 of the window's
-/// energy scale (E4s shear, 1,700 steps); an instability grows by orders of magnitude in
-/// a window (a step 2.5 times the element bound stopped the quick test's model at step 4,
-/// through the contact's tunnelling guard).
+/// kinetic energy stays small throughout (the source is not isolated yet). The tolerance
+/// sits above the largest drift seen in one window, while an instability grows by orders
+/// of magnitude within a window and a step well above the stable bound is stopped within
+/// a few steps (docs/TRIAXIAL.md, "Energy balance", has both measurements).
 pub const TEST_ENERGY_TOLERANCE: f64 = 0.5;
 
 /// Default depth limit of the test's contacts, in contact margins (`[contact]
 /// depth_limit` overrides it). Under the confining stress, vertex nodes of the angular
 /// particles carry large forces on small control areas and press deeper than half a
-/// margin while moving slowly: the E4s shear stopped at 3.5 % axial strain and the quick
-/// one at 9.5 % on such genuine contacts (docs/TRIAXIAL.md, "Contact depth limit"). Two
-/// margins let contacts reach one margin (a quarter of the shortest surface edge with the
-/// default margin; the quick test's deepest was 0.65 of it).
+/// margin while moving slowly, and runs with the depth limit at one margin stopped on
+/// such genuine contacts (docs/TRIAXIAL.md, "Contact depth limit"). Two margins let
+/// contacts reach one margin (a quarter of the shortest surface edge with the default
+/// margin), with room above the deepest contacts the test has measured (same section).
 pub const TEST_DEPTH_LIMIT_MARGINS: f64 = 2.0;
 
 /// The test's Verlet skin (the contact model's margin: rebuild distance and tunnelling
 /// scale), in specimen contact margins. Candidate boxes are enlarged by skin plus depth
 /// limit, and the narrow phase's cost grows faster than that enlargement: a thin skin
-/// pays for the deeper depth limit (quick specimen, one thread: 60,503 candidates with
-/// skin = depth limit = margin, 292,802 with a depth limit of 3 margins, 78,042 with
-/// this skin and a depth limit of 2 margins). The particles move a quarter margin in
-/// thousands of steps, so the extra rebuilds cost little.
+/// pays for the deeper depth limit, keeping the candidate pairs near those of a skin and
+/// depth limit of one margin each (docs/TRIAXIAL.md, "Contact depth limit", has the
+/// candidate counts and step costs). The particles move a quarter margin in thousands
+/// of steps, so the extra rebuilds cost little.
 pub const TEST_SKIN_FRACTION: f64 = 0.25;
 
 /// Depth, in specimen contact margins, beyond which a particle node found behind the

@@ -2,8 +2,10 @@
 //! random orientations. Centres start uniformly at random (overlaps allowed) and overlapping
 //! pairs are pushed apart until none is left (relaxation sweeps over the pairs a uniform
 //! grid finds among the 27 cells around each sphere, never all pairs). Unlike random
-//! sequential addition, which jams near a sphere fraction of 0.38 in bulk and 0.22 in a
-//! cylinder five diameters wide, this reaches the requested loose fraction up to about 0.5.
+//! sequential addition, which jams near a sphere fraction of 0.38 in bulk and far lower in
+//! a narrow cylinder, this reaches the loose fractions a preparation asks for, up to about
+//! the largest accepted (docs/SPECIMENS.md, "Preparation: the dynamic method", has the
+//! fractions reached).
 
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;

@@ -30,11 +30,11 @@ pub const MAX_NODES: u64 = 1_000_000_000;
 /// Energy-balance tolerance of the preparation's stability guard (the solver's default is
 /// 0.05). Settling quenches the assembly (every velocity set to zero) whenever the kinetic
 /// energy peaks, and each quench restarts the balance from the stored energy of a nearly
-/// static packing, so the energy scale is tiny (8e-7 J for the 56 level-0 particles of the
-/// preparation tests) and the balance carries the central-difference error of the energy
-/// of the fastest modes (order (omega dt)^2 / 4 of their energy, 0.25 at half the stable
-/// step): 0.18 of the scale was measured there with nothing unstable. An instability grows
-/// by orders of magnitude; 0.5 is the triaxial test's tolerance too.
+/// static packing, so the energy scale is tiny and the balance carries the
+/// central-difference error of the energy of the fastest modes (order (omega dt)^2 / 4 of
+/// their energy, 0.25 at half the stable step): a sizeable share of the scale with nothing
+/// unstable (docs/SPECIMENS.md, "Energy guard during preparation", has the measurement).
+/// An instability grows by orders of magnitude; 0.5 is the triaxial test's tolerance too.
 pub const PREPARATION_ENERGY_TOLERANCE: f64 = 0.5;
 /// Growth of the loose column when random placement finds no room.
 pub const COLUMN_GROWTH: f64 = 1.15;

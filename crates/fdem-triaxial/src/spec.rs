@@ -63,9 +63,10 @@ impl Default for SpecimenMesh {
     }
 }
 
-/// Largest `preparation.loose_solid_fraction` accepted: the placement's relaxation reaches
-/// 0.5 for the paper's specimens (E4s, five diameters wide, fails at 0.5 and the column
-/// then grows) and none reaches 0.55.
+/// Largest `preparation.loose_solid_fraction` accepted: the most the placement's
+/// relaxation reaches in the paper's specimens (a narrow one such as E4s falls short of
+/// it, and its column then grows), and none of them gets much further (docs/SPECIMENS.md,
+/// "Preparation: the dynamic method", has the fractions reached).
 pub const MAX_LOOSE_SOLID_FRACTION: f64 = 0.5;
 
 /// `[preparation]`: the dynamic method (docs/SPECIMENS.md, "Preparation").
@@ -75,8 +76,8 @@ pub struct PreparationSection {
     /// Nominal solid fraction of the loose random packing the platens start from, in
     /// (0, 0.5]; it sets the height of the loose column (grown while the random
     /// placement does not fit). Default 0.35: a denser start leaves the packing more
-    /// stressed at the target height (E4s: 0.38, 0.65 and 1.46 MPa on the platens from
-    /// 0.30, 0.35 and 0.40), and 0.35 keeps E4s below its confining pressure.
+    /// stressed at the target height, and 0.35 keeps E4s below its confining pressure
+    /// (docs/SPECIMENS.md, "Measured: the loose fraction and the stress left in E4s").
     #[serde(default = "default_loose", deserialize_with = "fraction")]
     pub loose_solid_fraction: f64,
     /// Closing speed of the two platens together (m/s), > 0; each platen moves at half of
@@ -88,9 +89,10 @@ pub struct PreparationSection {
     #[serde(default, deserialize_with = "non_negative")]
     pub friction: f64,
     /// Fraction of the stable time-step bound used, in (0, 1]. Default 0.4: the bound is
-    /// the assembled particle's (1.2-1.27 times the element bound of level-0 and level-1
-    /// particles), so this keeps the preparation's step where it was validated, about half
-    /// the element bound (docs/SPECIMENS.md).
+    /// the assembled particle's, which lies above the element bound (docs/VERIFICATION.md,
+    /// "Free particles in explicit dynamics", has the ratio), so this keeps the
+    /// preparation's step where it was validated, about half the element bound
+    /// (docs/SPECIMENS.md).
     #[serde(default = "default_dt_safety", deserialize_with = "fraction")]
     pub dt_safety: f64,
     /// Smallest gap between placed spheres, and between spheres and walls, as a fraction

@@ -25,8 +25,8 @@ pub const MEMBRANE_SPACING: f64 = 1.0 / 3.0;
 #[serde(deny_unknown_fields)]
 pub struct MembraneSection {
     /// Young's modulus (Pa), > 0. Default 40e6: stiffer than latex (about 1 MPa) on
-    /// purpose; a 1 MPa sleeve under 0.8 MPa wraps coarse particles and sinks into the
-    /// surface voids by up to a fifth of the specimen volume (measured, docs/TRIAXIAL.md).
+    /// purpose; a 1 MPa sleeve under 0.8 MPa wraps coarse particles and keeps sinking into
+    /// the surface voids (docs/TRIAXIAL.md, "Why a 40 MPa membrane by default").
     #[serde(default = "default_membrane_modulus", deserialize_with = "positive")]
     pub youngs_modulus: f64,
     /// Poisson's ratio, in (-1, 0.5). Default 0.45.
@@ -327,14 +327,14 @@ impl crate::SpecimenSpec {
     }
 }
 
-/// The quick test (`--quick`): a small, coarse specimen that runs end to end in about a
-/// minute on 2 threads, for tests and for trying things out. Not a paper test: phi 150 x
+/// The quick test (`--quick`): a small, coarse specimen that runs end to end in a short
+/// time on 2 threads, for tests and for trying things out. Not a paper test: phi 150 x
 /// 225 mm, 37.5 mm level-1 linear particles (D/d = 4, 84 particles, nominal solid
 /// fraction 0.62, jammed at the target height), softer grains (E = 10 GPa) with the
 /// paper's E1 penalty, a contact margin of 4 mm (twice the default, for the membrane
 /// draped over the coarse particles) and an inertial number of 5e-3; prepared at half
-/// the stable bound with a 3 % overlap limit. docs/TRIAXIAL.md gives the reasons and the
-/// cost.
+/// the stable bound with a 3 % overlap limit. docs/TRIAXIAL.md gives the reasons ("The
+/// quick specimen") and the measured cost ("Measured runs").
 pub fn quick_spec() -> crate::SpecimenSpec {
     let text = r#"
 name = "quick"

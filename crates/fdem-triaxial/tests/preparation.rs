@@ -2,8 +2,8 @@
 //! of the friction history.
 //!
 //! The specimens are a few dozen level-0 linear particles of a soft material (E = 100 MPa,
-//! so that the stable step is long) in a phi 104 x 60 mm cylinder: about 5000 compaction
-//! steps, a second or two in the dev profile.
+//! so that the stable step is long) in a phi 104 x 60 mm cylinder, so that a preparation
+//! takes few steps (docs/SPECIMENS.md, "Verification", has its step count and time).
 
 use fdem_contact::Counterpart;
 use fdem_mesh::{SphereSpec, sphere_mesh};

@@ -27,7 +27,7 @@ pub struct TriaxialArgs {
     /// A user specimen and test definition (TOML, docs/SPECIMENS.md and docs/TRIAXIAL.md).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// The quick test: a small, coarse specimen that runs in about a minute.
+    /// The quick test: a small, coarse specimen that runs end to end in a short time.
     #[arg(long)]
     quick: bool,
     /// A prepared specimen file to test instead of preparing one (its own definition is used).
