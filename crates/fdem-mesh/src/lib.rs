@@ -73,6 +73,8 @@ pub use fdem_core::geometry;
 
 pub use assembly::{BodyRange, MeshAssembly, Placement, ROTATION_NORM_TOLERANCE};
 pub use error::MeshError;
-pub use mesh::{ElementOrder, MeshQuality, Surface, TET_EDGES, TetMesh, VolumeProperties};
+pub use mesh::{
+    ElementOrder, MeshQuality, Surface, TET_EDGES, TetMesh, VolumeProperties, volume_properties,
+};
 pub use sphere::{MAX_LEVEL, Sizing, SphereSpec, sphere_mesh};
 pub use vtu::{VtuField, VtuFrame, write_pvd, write_vtu};

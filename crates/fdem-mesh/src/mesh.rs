@@ -84,6 +84,45 @@ impl VolumeProperties {
     }
 }
 
+/// [`TetMesh::volume_properties`] of the elements `elements` (`nodes_per_element` node
+/// ids each, the first four the corners) over `nodes`.
+///
+/// # Panics
+/// If a node id is out of range.
+pub fn volume_properties(
+    nodes: &[[f64; 3]],
+    elements: &[usize],
+    nodes_per_element: usize,
+) -> VolumeProperties {
+    // Integrals relative to the first node keep the round-off of far-off meshes small.
+    let origin = nodes.first().copied().unwrap_or([0.0; 3]);
+    let (mut volume, mut first, mut second) = (0.0, [0.0; 3], [[0.0; 3]; 3]);
+    for el in elements.chunks_exact(nodes_per_element.max(4)) {
+        let v = [0, 1, 2, 3].map(|i| sub(nodes[el[i]], origin));
+        let tet = tet_moments(v);
+        volume += tet.0;
+        for j in 0..3 {
+            first[j] += tet.1[j];
+            for (s, t) in second[j].iter_mut().zip(tet.2[j]) {
+                *s += t;
+            }
+        }
+    }
+    let c = first.map(|f| f / volume);
+    // Parallel-axis shift to the centroid: S_c = S_o - V c c^T.
+    let mut second_moment = second;
+    for (row, cj) in second_moment.iter_mut().zip(c) {
+        for (s, ck) in row.iter_mut().zip(c) {
+            *s -= volume * cj * ck;
+        }
+    }
+    VolumeProperties {
+        volume,
+        centroid: [c[0] + origin[0], c[1] + origin[1], c[2] + origin[2]],
+        second_moment,
+    }
+}
+
 /// Volume, first and second moments about the origin of the tetrahedron `v` (corners
 /// relative to the origin): `V`, `int x dV = V s / 4` and
 /// `int x x^T dV = V / 20 (sum_i v_i v_i^T + s s^T)` with `s = sum_i v_i` (the exact
@@ -163,33 +202,7 @@ impl TetMesh {
     /// # Panics
     /// If a node id is out of range (see [`TetMesh::validate`]).
     pub fn volume_properties(&self) -> VolumeProperties {
-        // Integrals relative to the first node keep the round-off of far-off meshes small.
-        let origin = self.nodes.first().copied().unwrap_or([0.0; 3]);
-        let (mut volume, mut first, mut second) = (0.0, [0.0; 3], [[0.0; 3]; 3]);
-        for e in 0..self.n_elements() {
-            let v = self.corners(e).map(|x| sub(x, origin));
-            let tet = tet_moments(v);
-            volume += tet.0;
-            for j in 0..3 {
-                first[j] += tet.1[j];
-                for (s, t) in second[j].iter_mut().zip(tet.2[j]) {
-                    *s += t;
-                }
-            }
-        }
-        let c = first.map(|f| f / volume);
-        // Parallel-axis shift to the centroid: S_c = S_o - V c c^T.
-        let mut second_moment = second;
-        for (row, cj) in second_moment.iter_mut().zip(c) {
-            for (s, ck) in row.iter_mut().zip(c) {
-                *s -= volume * cj * ck;
-            }
-        }
-        VolumeProperties {
-            volume,
-            centroid: [c[0] + origin[0], c[1] + origin[1], c[2] + origin[2]],
-            second_moment,
-        }
+        volume_properties(&self.nodes, &self.elements, self.order.nodes_per_element())
     }
 
     /// Checks that the arrays fit together: the element array is a whole number of

@@ -21,6 +21,11 @@ pub enum BodyKind {
     /// tetrahedra; its in-plane forces come from a force contribution of its own, and the
     /// contact model treats its faces as a sheet (one side, no volume behind them).
     Sheet,
+    /// A rigid particle (docs/MODEL.md section 12): the template's surface nodes, placed
+    /// from the body's pose every step; six degrees of freedom integrated as a rigid body
+    /// ([`crate::RigidState`]), with the mass properties of the solid meshed shape. Its
+    /// faces are contact faces like a deformable particle's.
+    Rigid,
 }
 
 /// One body of the simulation: a contiguous node range (and element range for deformable
@@ -51,10 +56,10 @@ pub struct BodyMotion {
 }
 
 impl Body {
-    /// True for the bodies that are grains of the granular material (deformable particles
-    /// today; rigid ones too once they exist), false for boundaries such as a membrane.
+    /// True for the bodies that are grains of the granular material (deformable and rigid
+    /// particles), false for boundaries such as a membrane.
     pub fn is_particle(&self) -> bool {
-        matches!(self.kind, BodyKind::Deformable)
+        matches!(self.kind, BodyKind::Deformable | BodyKind::Rigid)
     }
 
     /// Rigid-body summary from the node state: centroid, momentum / mass, angular momentum

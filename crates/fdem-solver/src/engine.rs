@@ -3,7 +3,8 @@
 
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
-use crate::{Body, ContactForces, NodeState, SolverError};
+use crate::rigid::RigidPart;
+use crate::{Body, BodyKind, BodyMotion, ContactForces, NodeState, SolverError};
 use rayon::prelude::*;
 use std::any::Any;
 
@@ -88,6 +89,7 @@ pub(crate) struct Assembled {
     pub(crate) connectivity: Vec<usize>,
     pub(crate) elastic: ElasticForces,
     pub(crate) contact: Option<ContactForces>,
+    pub(crate) rigid: Vec<RigidPart>,
     pub(crate) parts: Parts,
     pub(crate) gravity: [f64; 3],
     pub(crate) bound: StepBound,
@@ -110,6 +112,7 @@ pub struct Simulation {
     connectivity: Vec<usize>,
     elastic: ElasticForces,
     contact: Option<ContactForces>,
+    rigid: Vec<RigidPart>,
     parts: Parts,
     gravity: [f64; 3],
     time: f64,
@@ -156,6 +159,7 @@ impl Simulation {
             connectivity: parts.connectivity,
             elastic: parts.elastic,
             contact: parts.contact,
+            rigid: parts.rigid,
             parts: parts.parts,
             gravity: parts.gravity,
             time: 0.0,
@@ -446,9 +450,12 @@ impl Simulation {
         for c in &mut self.parts.contributions {
             powers.add(c.add_forces(view, forces)?);
         }
-        add_gravity(self.gravity, &state.masses, forces);
+        add_gravity(self.gravity, &state.masses, &state.inverse_masses, forces);
         for c in &mut self.parts.constraints {
             powers.add(c.apply(view, forces)?);
+        }
+        for part in &mut self.rigid {
+            part.gather(&state.positions, forces, self.gravity);
         }
         self.last_powers = powers;
         Ok(())
@@ -462,6 +469,11 @@ impl Simulation {
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
         kick_and_drift(&mut self.state, half, dt);
+        for part in &mut self.rigid {
+            part.kick(half);
+            part.state.drift(&part.inertia, dt);
+            part.place_nodes(&mut self.state.positions, &mut self.state.velocities);
+        }
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.compute_forces() {
@@ -478,6 +490,10 @@ impl Simulation {
         self.contribution_work += dt * self.last_powers.external;
         self.damping_dissipated += dt * self.last_powers.damping;
         self.friction_dissipated += self.last_powers.friction_energy;
+        for part in &mut self.rigid {
+            part.kick(half);
+            part.place_nodes(&mut self.state.positions, &mut self.state.velocities);
+        }
         let finite = kick(&mut self.state, half);
         self.step = step;
         self.time = time;
@@ -552,20 +568,70 @@ impl Simulation {
         if g == [0.0; 3] {
             return 0.0;
         }
-        s.positions
+        let nodes: f64 = s
+            .positions
             .iter()
             .zip(&s.reference)
             .zip(&s.masses)
-            .map(|((x, x0), &m)| {
+            .zip(&s.inverse_masses)
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(((x, x0), &m), _)| {
                 m * (g[0] * (x[0] - x0[0]) + g[1] * (x[1] - x0[1]) + g[2] * (x[2] - x0[2]))
             })
-            .sum()
+            .sum();
+        if self.rigid.is_empty() {
+            return nodes;
+        }
+        nodes + self.rigid.iter().map(|p| p.gravity_work(g)).sum::<f64>()
+    }
+
+    /// Kinetic energy (J): `m v^2 / 2` of the nodes the node update moves, plus every
+    /// rigid body's translational and rotational energy.
+    pub fn kinetic_energy(&self) -> f64 {
+        let s = &self.state;
+        if self.rigid.is_empty() {
+            return s.kinetic_energy(0..s.len());
+        }
+        let nodes: f64 = s
+            .velocities
+            .iter()
+            .zip(&s.masses)
+            .zip(&s.inverse_masses)
+            .filter(|(_, w)| **w > 0.0)
+            .map(|((v, &m), _)| 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
+            .sum();
+        nodes
+            + self
+                .rigid
+                .iter()
+                .map(|p| p.state.kinetic_energy(&p.inertia))
+                .sum::<f64>()
+    }
+
+    /// Rigid-body summary of body `id` (`bodies.csv`): a rigid body's from its own state,
+    /// any other's from its nodes ([`Body::motion`]).
+    ///
+    /// # Panics
+    /// If `id` is not a body of this simulation.
+    pub fn body_motion(&self, id: usize) -> BodyMotion {
+        let body = &self.bodies[id];
+        if body.kind == BodyKind::Rigid
+            && let Some(p) = self.rigid.iter().find(|p| p.body == id)
+        {
+            return BodyMotion {
+                mass: p.inertia.mass,
+                centroid: p.state.position,
+                velocity: p.state.velocity,
+                angular_velocity: p.state.angular_velocity(&p.inertia),
+                angular_momentum: p.state.angular_momentum(),
+            };
+        }
+        body.motion(&self.state)
     }
 
     /// The energies now.
     pub fn energy(&self) -> EnergyReport {
-        let s = &self.state;
-        let kinetic = s.kinetic_energy(0..s.len());
+        let kinetic = self.kinetic_energy();
         let strain = self.elastic.potential_energy(self.view());
         let contact = self.contact.as_ref().map_or(0.0, |c| c.potential_energy());
         let other_potential: f64 = contact
@@ -595,17 +661,22 @@ impl Simulation {
 }
 
 /// Adds `m g` to every node's force.
-fn add_gravity(g: [f64; 3], masses: &[f64], forces: &mut [[f64; 3]]) {
+/// Adds `m g` to the force of every node the node update moves (rigid bodies take their
+/// weight as a whole).
+fn add_gravity(g: [f64; 3], masses: &[f64], inverse_masses: &[f64], forces: &mut [[f64; 3]]) {
     if g == [0.0; 3] {
         return;
     }
     forces
         .par_chunks_mut(NODE_CHUNK)
         .zip(masses.par_chunks(NODE_CHUNK))
-        .for_each(|(f, m)| {
-            for (fi, &mi) in f.iter_mut().zip(m) {
-                for k in 0..3 {
-                    fi[k] += mi * g[k];
+        .zip(inverse_masses.par_chunks(NODE_CHUNK))
+        .for_each(|((f, m), im)| {
+            for ((fi, &mi), &wi) in f.iter_mut().zip(m).zip(im) {
+                if wi > 0.0 {
+                    for k in 0..3 {
+                        fi[k] += mi * g[k];
+                    }
                 }
             }
         });

@@ -11,7 +11,8 @@
 
 use crate::engine::{Assembled, Guard, Parts, Simulation, TimeStep};
 use crate::forces::{Constraint, ElasticForces, ElementInput, ForceContribution, StepBound};
-use crate::{Body, BodyKind, ContactForces, NodeState, SolverError};
+use crate::rigid::RigidPart;
+use crate::{Body, BodyKind, ContactForces, NodeState, RigidInertia, RigidState, SolverError};
 use fdem_contact::{ContactModel, ContactParams, ContactSurface, Wall};
 use fdem_elastic::Material;
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
@@ -133,6 +134,7 @@ pub struct ModelBuilder {
     surface: ContactSurface,
     walls: Vec<Wall>,
     contact: Option<ContactSettings>,
+    rigid: Vec<RigidPart>,
     parts: Parts,
     gravity: [f64; 3],
     time_step: TimeStep,
@@ -160,6 +162,7 @@ impl ModelBuilder {
             surface: ContactSurface::default(),
             walls: Vec::new(),
             contact: None,
+            rigid: Vec::new(),
             parts: Parts {
                 contributions: Vec::new(),
                 constraints: Vec::new(),
@@ -236,6 +239,78 @@ impl ModelBuilder {
             kind: BodyKind::Deformable,
             nodes,
             elements,
+        });
+        Ok(BodyId(id))
+    }
+
+    /// Adds a rigid particle: `template` placed by `placement`, of `material`'s density,
+    /// moving rigidly with `motion` about `placement.translation`. Its nodes are the
+    /// template's surface nodes with their lumped masses as a deformable particle of the
+    /// same mesh has them (the contact dashpots of eq 3 use them); its mass, centre and
+    /// inertia are those of the solid meshed shape, integrated exactly over the
+    /// tetrahedra.
+    ///
+    /// # Errors
+    /// A template or placement that fdem-mesh refuses, or a degenerate shape.
+    pub fn add_rigid(
+        &mut self,
+        template: &TetMesh,
+        placement: &Placement,
+        material: &Material,
+        motion: InitialMotion,
+    ) -> Result<BodyId, SolverError> {
+        let mut one = MeshAssembly::new();
+        one.push_instance(template, placement)?;
+        let npe = one.nodes_per_element();
+        let id = self.bodies.len();
+        let shape = fdem_mesh::volume_properties(&one.nodes, &one.elements, npe);
+        let inertia = RigidInertia::new(
+            material.density * shape.volume,
+            shape.inertia(material.density),
+        )
+        .map_err(|e| SolverError::InvalidScene(format!("body {id}: {e}")))?;
+        let set = fdem_elastic::ElementSet::new(material, npe, &one.nodes, &one.elements)
+            .map_err(|source| SolverError::Elastic { body: id, source })?;
+        let lumped = set.lumped_masses(one.n_nodes());
+        // The body's nodes are the surface nodes, renumbered in their surface order.
+        let mut local = vec![usize::MAX; one.n_nodes()];
+        for (k, &n) in one.surface_nodes.iter().enumerate() {
+            local[n] = k;
+        }
+        let triangles: Vec<[usize; 3]> =
+            one.triangles.iter().map(|t| t.map(|n| local[n])).collect();
+        let surface: Vec<usize> = (0..one.surface_nodes.len()).collect();
+        let first = self.reference.len();
+        self.push_surface(id, first, &triangles, &surface, &one.control_areas)?;
+        let c = shape.centroid;
+        let frame = crate::rigid::rotation(inertia.principal_frame);
+        let mut offsets = Vec::with_capacity(surface.len());
+        for &n in &one.surface_nodes {
+            let x = one.nodes[n];
+            offsets.push(frame.inverse_apply([x[0] - c[0], x[1] - c[1], x[2] - c[2]]));
+            self.reference.push(x);
+            self.masses.push(lumped[n]);
+        }
+        let centre = placement.translation;
+        let r = [c[0] - centre[0], c[1] - centre[1], c[2] - centre[2]];
+        let u = fdem_core::geometry::cross(motion.angular_velocity, r);
+        let v = [0, 1, 2].map(|k| motion.velocity[k] + u[k]);
+        let state = RigidState::new(
+            &inertia,
+            c,
+            v,
+            inertia.principal_frame,
+            motion.angular_velocity,
+        );
+        let part = RigidPart::new(id, first, offsets, inertia, state);
+        self.velocities.resize(self.reference.len(), [0.0; 3]);
+        part.place_nodes(&mut self.reference, &mut self.velocities);
+        self.rigid.push(part);
+        let first_element = self.n_elements();
+        self.bodies.push(Body {
+            kind: BodyKind::Rigid,
+            nodes: first..self.reference.len(),
+            elements: first_element..first_element,
         });
         Ok(BodyId(id))
     }
@@ -376,6 +451,11 @@ impl ModelBuilder {
         }
         let mut state = NodeState::new(self.reference, masses);
         state.velocities = self.velocities;
+        // Rigid bodies' nodes follow their pose: the node update leaves them alone.
+        for part in &self.rigid {
+            let nodes = part.first..part.first + part.offsets.len();
+            state.inverse_masses[nodes].fill(0.0);
+        }
         let sheets: Vec<u32> = (0..self.bodies.len() as u32)
             .filter(|&b| self.bodies[b as usize].kind == BodyKind::Sheet)
             .collect();
@@ -424,6 +504,7 @@ impl ModelBuilder {
             connectivity: self.connectivity,
             elastic,
             contact,
+            rigid: self.rigid,
             parts: self.parts,
             gravity: self.gravity,
             bound,

@@ -75,8 +75,8 @@ pub fn energy_row(e: &EnergyReport) -> String {
 
 /// Appends one row per body to `bodies.csv`.
 pub fn body_rows(sim: &Simulation, series: &mut CsvSeries) -> Result<(), SolverError> {
-    for (id, body) in sim.bodies().iter().enumerate() {
-        let m = body.motion(sim.state());
+    for id in 0..sim.bodies().len() {
+        let m = sim.body_motion(id);
         let (c, v, w) = (m.centroid, m.velocity, m.angular_velocity);
         series.row(&format!(
             "{:e},{id},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",

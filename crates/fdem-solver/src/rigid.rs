@@ -174,3 +174,100 @@ impl RigidState {
         [0, 1, 2].map(|k| self.position[k] + r[k])
     }
 }
+
+/// One rigid body of a simulation: its node range (the template's surface nodes), the
+/// nodes' offsets from the centre of mass in the principal frame, mass properties, state,
+/// and the force and torque of the last evaluation.
+#[derive(Clone, Debug)]
+pub(crate) struct RigidPart {
+    pub(crate) body: usize,
+    pub(crate) first: usize,
+    pub(crate) offsets: Vec<[f64; 3]>,
+    pub(crate) inertia: RigidInertia,
+    pub(crate) state: RigidState,
+    /// Centre of mass at the reference of gravity's work (m).
+    pub(crate) reference: [f64; 3],
+    force: [f64; 3],
+    torque: [f64; 3],
+}
+
+impl RigidPart {
+    pub(crate) fn new(
+        body: usize,
+        first: usize,
+        offsets: Vec<[f64; 3]>,
+        inertia: RigidInertia,
+        state: RigidState,
+    ) -> Self {
+        RigidPart {
+            body,
+            first,
+            offsets,
+            inertia,
+            reference: state.position,
+            state,
+            force: [0.0; 3],
+            torque: [0.0; 3],
+        }
+    }
+
+    /// A kick of duration `h` with the force and torque of the last evaluation.
+    pub(crate) fn kick(&mut self, h: f64) {
+        self.state.kick(&self.inertia, self.force, self.torque, h);
+    }
+
+    /// Positions and velocities of the body's nodes from its pose:
+    /// `x_i = X + R r_i`, `v_i = V + omega x (x_i - X)`.
+    pub(crate) fn place_nodes(&self, positions: &mut [[f64; 3]], velocities: &mut [[f64; 3]]) {
+        let w = self.state.angular_velocity(&self.inertia);
+        let c = self.state.position;
+        let v = self.state.velocity;
+        for (k, offset) in self.offsets.iter().enumerate() {
+            let x = self.state.point(*offset);
+            let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+            let u = fdem_core::geometry::cross(w, r);
+            positions[self.first + k] = x;
+            velocities[self.first + k] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
+        }
+    }
+
+    /// Sums the node forces into the body's force and torque about its centre, plus its
+    /// weight `m g`.
+    pub(crate) fn gather(&mut self, positions: &[[f64; 3]], forces: &[[f64; 3]], g: [f64; 3]) {
+        let c = self.state.position;
+        let mut force = g.map(|gk| self.inertia.mass * gk);
+        let mut torque = [0.0; 3];
+        for k in 0..self.offsets.len() {
+            let (x, f) = (positions[self.first + k], forces[self.first + k]);
+            let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+            let t = fdem_core::geometry::cross(r, f);
+            for j in 0..3 {
+                force[j] += f[j];
+                torque[j] += t[j];
+            }
+        }
+        self.force = force;
+        self.torque = torque;
+    }
+
+    /// Gravity's work since the reference, `m g . (X - X_ref)` (J).
+    pub(crate) fn gravity_work(&self, g: [f64; 3]) -> f64 {
+        let (x, x0) = (self.state.position, self.reference);
+        self.inertia.mass * (g[0] * (x[0] - x0[0]) + g[1] * (x[1] - x0[1]) + g[2] * (x[2] - x0[2]))
+    }
+}
+
+/// A rotation given as a unit quaternion `[w, x, y, z]`.
+pub(crate) struct Frame(UnitQuaternion<f64>);
+
+/// The rotation of the unit quaternion `q`.
+pub(crate) fn rotation(q: [f64; 4]) -> Frame {
+    Frame(quaternion(q))
+}
+
+impl Frame {
+    /// `R^T v`.
+    pub(crate) fn inverse_apply(&self, v: [f64; 3]) -> [f64; 3] {
+        array(self.0.inverse_transform_vector(&Vector3::from(v)))
+    }
+}
