@@ -278,7 +278,8 @@ fn particle_fields(w: &mut Walker<'_, '_>, p: &mut ParticleSection) {
         velocity,
         angular_velocity,
         orientation,
-        mesh: _, // level, order and sizing are not physical quantities
+        mesh: _,  // level, order and sizing are not physical quantities
+        model: _, // a choice of model, not a quantity
     } = p;
     w.scalar("diameter", "length", Role::Particle, diameter);
     w.array("center", "length", Role::Domain, center);

@@ -46,6 +46,6 @@ pub use rigid::{RigidInertia, RigidState};
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
     ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
-    MeshSection, ParticleSection, Scene, SimulationSection, WallSection, WallType,
+    MeshSection, ParticleModel, ParticleSection, Scene, SimulationSection, WallSection, WallType,
 };
 pub use state::NodeState;

@@ -341,6 +341,28 @@ pub struct ParticleSection {
     /// Mesh of the particle; default level 1, linear, inscribed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<MeshSection>,
+    /// How much physics the particle gets: `"deformable"` (default; a tetrahedral mesh
+    /// that deforms elastically) or `"rigid"` (the mesh's surface moving as one rigid
+    /// body with the solid mesh's mass properties; docs/MODEL.md section 12).
+    #[serde(default, skip_serializing_if = "ParticleModel::is_default")]
+    pub model: ParticleModel,
+}
+
+/// The model of one particle ([`ParticleSection::model`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ParticleModel {
+    /// Elastic tetrahedra.
+    #[default]
+    Deformable,
+    /// One rigid body.
+    Rigid,
+}
+
+impl ParticleModel {
+    fn is_default(&self) -> bool {
+        *self == ParticleModel::Deformable
+    }
 }
 
 /// `mesh = { level = 1, order = "linear", sizing = "inscribed" }`.
@@ -431,14 +453,21 @@ impl Scene {
                 "the scene has no particles; add at least one [[particle]] table".into(),
             ));
         }
-        let first = self.particles[0].mesh.unwrap_or_default().order;
-        for (i, p) in self.particles.iter().enumerate() {
+        // Rigid particles have no elements; the deformable ones share one order.
+        let deformable = self
+            .particles
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.model == ParticleModel::Deformable);
+        let mut first = None;
+        for (i, p) in deformable {
             let order = p.mesh.unwrap_or_default().order;
-            if order != first {
+            let (j, reference) = *first.get_or_insert((i, order));
+            if order != reference {
                 return Err(fail(
                     format!("particle[{i}].mesh.order"),
                     format!(
-                        "all particles of a scene must share one element order; particle[0] is {first:?}, this one {order:?}"
+                        "all deformable particles of a scene must share one element order; particle[{j}] is {reference:?}, this one {order:?}"
                     ),
                 ));
             }
@@ -613,7 +642,12 @@ impl Scene {
                 velocity: p.velocity.unwrap_or([0.0; 3]),
                 angular_velocity: p.angular_velocity.unwrap_or([0.0; 3]),
             };
-            ids.push(model.add_deformable(template, &placement, &material, motion)?);
+            ids.push(match p.model {
+                ParticleModel::Deformable => {
+                    model.add_deformable(template, &placement, &material, motion)?
+                }
+                ParticleModel::Rigid => model.add_rigid(template, &placement, &material, motion)?,
+            });
         }
         Ok(ids)
     }

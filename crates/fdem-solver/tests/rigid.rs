@@ -321,4 +321,102 @@ mod in_the_engine {
         );
         assert!((w - omega).abs() < 0.05 * omega, "omega {w} vs {omega}");
     }
+
+    /// A scene that mixes a rigid and a deformable particle (`model = "rigid"`): in a
+    /// frictional oblique collision the total linear momentum (the rigid body's `m V`
+    /// plus the deformable nodes' `sum m v`) is conserved to 1e-10 relative, since contact
+    /// forces come in equal and opposite pairs and the rigid body gathers its nodes'
+    /// forces whole.
+    #[test]
+    fn a_mixed_scene_conserves_linear_momentum_in_a_frictional_collision() {
+        let scene = fdem_solver::Scene::from_toml_str(
+            r#"
+[simulation]
+duration = 1.0
+dt_safety = 0.5
+[material]
+density = 2650.0
+youngs_modulus = 40.0e9
+poisson_ratio = 0.2
+[[particle]]
+diameter = 0.01
+center = [0.0, 0.0, 0.0]
+velocity = [2.0, 0.5, 0.0]
+model = "rigid"
+[[particle]]
+diameter = 0.01
+center = [0.01003, 0.003, 0.0]
+mesh = { level = 1, order = "quadratic" }
+"#,
+            "mixed",
+        )
+        .unwrap();
+        let mut sim = scene.build().unwrap();
+        assert_eq!(sim.bodies()[0].kind, BodyKind::Rigid);
+        assert_eq!(sim.bodies()[1].kind, BodyKind::Deformable);
+        let momentum = |sim: &fdem_solver::Simulation| {
+            let (a, b) = (sim.body_motion(0), sim.body_motion(1));
+            [0, 1, 2].map(|k| a.mass * a.velocity[k] + b.mass * b.velocity[k])
+        };
+        let p0 = momentum(&sim);
+        let (mut touched, mut after) = (false, 0);
+        while after < 2000 && sim.step() < 200_000 {
+            sim.advance().unwrap();
+            let c = sim.contact().unwrap().model().node_contacts();
+            touched |= c.iter().any(|c| c.tangential_force != [0.0; 3]);
+            after += usize::from(touched);
+        }
+        assert!(touched, "no frictional contact by {:e} s", sim.time());
+        let p = momentum(&sim);
+        let scale = super::norm(p0);
+        for k in 0..3 {
+            assert!((p[k] - p0[k]).abs() < 1e-10 * scale, "{p:?} vs {p0:?}");
+        }
+        // The deformable particle was pushed.
+        assert!(sim.body_motion(1).velocity[0] > 0.1);
+    }
+}
+
+/// The deformable particle's lumped masses carry more rotational inertia than the solid
+/// it meshes (a share of the mass sits on the surface nodes, a share on the centre): for
+/// every mesh the ratio of the lumped inertia `sum m_i |r_i|^2` to the solid's
+/// `rho tr(S)` (both isotropic, so one number each) lies between 1 and 2; refined linear
+/// meshes tend to `0.5 / 0.4` (a quarter of the mass on the centre node, the rest on the
+/// surface). The ratios are printed for docs/VERIFICATION.md (`cargo test -p fdem-solver --test rigid --
+/// --nocapture lumped`).
+#[test]
+fn lumped_masses_carry_more_rotational_inertia_than_the_solid() {
+    use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
+    let material = fdem_elastic::Material::new(2650.0, 40.0e9, 0.2).unwrap();
+    for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+        for level in 0..=3 {
+            let mesh = sphere_mesh(&SphereSpec {
+                level,
+                order,
+                diameter: 1.0,
+                sizing: Sizing::Inscribed,
+            })
+            .unwrap();
+            let npe = order.nodes_per_element();
+            let set =
+                fdem_elastic::ElementSet::new(&material, npe, &mesh.nodes, &mesh.elements).unwrap();
+            let masses = set.lumped_masses(mesh.n_nodes());
+            let shape = mesh.volume_properties();
+            let c = shape.centroid;
+            let lumped: f64 = mesh
+                .nodes
+                .iter()
+                .zip(&masses)
+                .map(|(x, m)| m * norm([x[0] - c[0], x[1] - c[1], x[2] - c[2]]).powi(2))
+                .sum();
+            let s = shape.second_moment;
+            let solid = material.density * (s[0][0] + s[1][1] + s[2][2]);
+            let ratio = lumped / solid;
+            eprintln!("lumped inertia / solid inertia, level {level} {order:?}: {ratio:.4}");
+            assert!(
+                ratio > 1.0 && ratio < 2.0,
+                "level {level} {order:?}: {ratio}"
+            );
+        }
+    }
 }

@@ -13,8 +13,8 @@ use crate::placement::{Column, PlacedParticle, place_spheres};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
 use fdem_solver::{
-    ContactSection, MeshSection, ParticleSection, Scene, Simulation, SimulationSection,
-    WallSection, WallType,
+    ContactSection, MeshSection, ParticleModel, ParticleSection, Scene, Simulation,
+    SimulationSection, WallSection, WallType,
 };
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -253,6 +253,7 @@ pub fn particle_sections(
             angular_velocity: None,
             orientation: Some(p.orientation),
             mesh: Some(mesh),
+            model: ParticleModel::default(),
         })
         .collect()
 }
