@@ -49,8 +49,8 @@ pub struct AssembledStep {
 }
 
 impl ElementSet {
-    /// Estimates the stable step of this body as an assembled system (see the
-    /// [module documentation](self)): power iteration on `M^-1/2 K M^-1/2` with the rest
+    /// Estimates the stable step of this body as an assembled system (see the docs of
+    /// this module, `assembled_step`): power iteration on `M^-1/2 K M^-1/2` with the rest
     /// stiffness. A set without elements gives `+inf`.
     ///
     /// Cost: the element matrices once, then one sparse product per iteration

@@ -188,7 +188,8 @@ impl Simulation {
     /// Positions and velocities for editing between steps (restoring a saved state,
     /// seating nodes on a platen). The forces are re-evaluated at the next step; call
     /// [`Simulation::rebase_energy`] to re-evaluate them now and measure the energy
-    /// balance from the edited state.
+    /// balance from the edited state. Nodes of rigid bodies follow their body's pose: an
+    /// edit of them is overwritten at the next step.
     pub fn nodes_mut(&mut self) -> NodesMut<'_> {
         NodesMut {
             positions: &mut self.state.positions,

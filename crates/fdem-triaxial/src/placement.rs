@@ -142,7 +142,7 @@ impl Grid {
 ///
 /// Centres start uniformly at random in the region each sphere may occupy; then sweeps
 /// over all overlapping pairs (found through a grid of cell d_max + clearance) push each
-/// pair apart along the line of centres, each sphere by half of [`PUSH_FACTOR`] times the
+/// pair apart along the line of centres, each sphere by half of `PUSH_FACTOR` times the
 /// overlap, and project the spheres back into their regions, until a sweep finds no overlap
 /// (at most [`MAX_SWEEPS`] sweeps). Deterministic for a given `seed`.
 pub fn place_spheres(
