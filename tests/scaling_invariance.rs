@@ -29,11 +29,12 @@ const TOLERANCE: f64 = 1e-9;
 /// 4e-3 Pa: ten times that noise, and far below the stresses contacts make (MPa).
 const STRESS_FLOOR: f64 = 1e-4 * 40.0e9;
 
-/// Diameter, centre, velocity, spin, orientation.
-type Particle = (f64, [f64; 3], [f64; 3], [f64; 3], [f64; 4]);
+/// Diameter, centre, velocity, spin, orientation, rigid.
+type Particle = (f64, [f64; 3], [f64; 3], [f64; 3], [f64; 4], bool);
 
 /// A random small scene: particles on a loose jittered lattice, each heading for the
-/// centre at up to 1 m/s and spinning, optionally a floor wall, random contact law.
+/// centre at up to 1 m/s and spinning, each deformable or rigid, optionally a floor wall,
+/// random contact law.
 #[derive(Clone, Debug)]
 struct Case {
     particles: Vec<Particle>,
@@ -62,9 +63,10 @@ fn case() -> impl Strategy<Value = Case> {
         0.0f64..0.5,
         0.0f64..0.5,
         0.0f64..200.0,
+        prop::collection::vec(any::<bool>(), 8),
     )
         .prop_map(
-            |(n, raw, level, quadratic, floor, friction, damping, gravity)| {
+            |(n, raw, level, quadratic, floor, friction, damping, gravity, rigid)| {
                 // Lattice 2 x 2 x 2 with spacing just under the largest diameter, so that
                 // neighbours touch within a few hundred steps.
                 let spacing = 0.99 * raw.iter().take(n).map(|p| p.0).fold(0.0, f64::max);
@@ -85,7 +87,7 @@ fn case() -> impl Strategy<Value = Case> {
                         } else {
                             [1.0, 0.0, 0.0, 0.0]
                         };
-                        (d, centre, velocity, spin.map(|x| 100.0 * x), q)
+                        (d, centre, velocity, spin.map(|x| 100.0 * x), q, rigid[i])
                     })
                     .collect();
                 Case {
@@ -122,10 +124,11 @@ fn scene(c: &Case) -> Scene {
             "[[wall]]\ntype = \"plane\"\npoint = [0.0, 0.0, {z}]\nnormal = [0.0, 0.0, 1.0]\nvelocity = [0.0, 0.0, 2.5]\n"
         ));
     }
-    for (d, x, v, w, q) in &c.particles {
+    for (d, x, v, w, q, rigid) in &c.particles {
+        let model = if *rigid { "rigid" } else { "deformable" };
         text.push_str(&format!(
             "[[particle]]\ndiameter = {d}\ncenter = {x:?}\nvelocity = {v:?}\nangular_velocity = {w:?}\n\
-             orientation = {q:?}\nmesh = {{ level = {}, order = \"{order}\" }}\n",
+             orientation = {q:?}\nmesh = {{ level = {}, order = \"{order}\" }}\nmodel = \"{model}\"\n",
             c.level
         ));
     }
@@ -256,6 +259,7 @@ fn collision_case() -> Case {
                 [1.0, 0.0, 0.0],
                 [0.0, 50.0, 0.0],
                 [1.0, 0.0, 0.0, 0.0],
+                false,
             ),
             (
                 0.015,
@@ -263,6 +267,7 @@ fn collision_case() -> Case {
                 [-1.0, 0.0, 0.0],
                 [0.0, 0.0, 0.0],
                 [0.8, 0.0, 0.6, 0.0],
+                false,
             ),
         ],
         level: 1,

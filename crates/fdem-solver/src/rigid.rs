@@ -46,7 +46,10 @@ impl RigidInertia {
     pub fn new(mass: f64, inertia: [[f64; 3]; 3]) -> Result<RigidInertia, SolverError> {
         let tensor = Matrix3::from_fn(|j, k| 0.5 * (inertia[j][k] + inertia[k][j]));
         let eigen = SymmetricEigen::new(tensor);
-        let principal = [0, 1, 2].map(|k| eigen.eigenvalues[k]);
+        // Ascending moments, so that the splitting's order of axes is fixed.
+        let mut order = [0, 1, 2];
+        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+        let principal = order.map(|k| eigen.eigenvalues[k]);
         if !(mass.is_finite() && mass > 0.0)
             || principal.iter().any(|&i| !(i.is_finite() && i > 0.0))
         {
@@ -55,17 +58,78 @@ impl RigidInertia {
                  {mass:e} kg and moments {principal:?} kg m^2"
             )));
         }
-        let mut axes = eigen.eigenvectors;
-        if axes.determinant() < 0.0 {
-            axes.column_mut(2).neg_mut();
-        }
-        let rotation = nalgebra::Rotation3::from_matrix_unchecked(axes);
+        let axes = canonical_axes(
+            principal,
+            order.map(|k| eigen.eigenvectors.column(k).into_owned()),
+        );
+        let principal = averaged_equal_moments(principal);
+        let rotation = nalgebra::Rotation3::from_matrix_unchecked(Matrix3::from_columns(&axes));
         let q = UnitQuaternion::from_rotation_matrix(&rotation);
         Ok(RigidInertia {
             mass,
             principal,
             principal_frame: [q.w, q.i, q.j, q.k],
         })
+    }
+}
+
+/// Moments closer than this, relative to the largest, count as equal: their axes are
+/// not defined by the tensor, and round-off would otherwise choose them.
+const DEGENERATE: f64 = 1e-9;
+
+/// Principal axes that depend on the body's geometry only, not on round-off: where moments
+/// are equal (a sphere mesh's inertia is isotropic, an axisymmetric body's has a double
+/// moment) the eigenvectors are arbitrary, and the splitting's `O(dt^2)` error depends on
+/// the axes it rotates about, so a run would depend on rounding (and exact scaling would
+/// not hold to round-off). Isotropic: the mesh's own axes. A double moment: the distinct
+/// axis, then the mesh's x (or y) axis projected off it. Signs: the largest component of
+/// each distinct axis positive; right-handed.
+fn canonical_axes(moments: [f64; 3], vectors: [Vector3<f64>; 3]) -> [Vector3<f64>; 3] {
+    let equal = |a: f64, b: f64| (a - b).abs() <= DEGENERATE * moments[2];
+    let signed = |v: Vector3<f64>| {
+        let k = v.iamax();
+        if v[k] < 0.0 { -v } else { v }
+    };
+    let completed = |axis: Vector3<f64>| {
+        let x = if axis.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let u = (x - axis * axis.dot(&x)).normalize();
+        (u, axis.cross(&u))
+    };
+    let [a, b, c] = vectors;
+    let axes = match (equal(moments[0], moments[1]), equal(moments[1], moments[2])) {
+        (true, true) => [Vector3::x(), Vector3::y(), Vector3::z()],
+        (true, false) => {
+            let c = signed(c);
+            let (u, v) = completed(c);
+            [u, v, c]
+        }
+        (false, true) => {
+            let a = signed(a);
+            let (u, v) = completed(a);
+            [a, u, v]
+        }
+        (false, false) => [signed(a), signed(b), signed(c)],
+    };
+    let mut axes = axes;
+    if axes[0].cross(&axes[1]).dot(&axes[2]) < 0.0 {
+        axes[2] = -axes[2];
+    }
+    axes
+}
+
+/// Moments that count as equal ([`DEGENERATE`]) replaced by their mean, so that the
+/// tensor the integrator uses has exactly the symmetry its axes were chosen for.
+fn averaged_equal_moments(m: [f64; 3]) -> [f64; 3] {
+    let equal = |a: f64, b: f64| (a - b).abs() <= DEGENERATE * m[2];
+    match (equal(m[0], m[1]), equal(m[1], m[2])) {
+        (true, true) => [(m[0] + m[1] + m[2]) / 3.0; 3],
+        (true, false) => [0.5 * (m[0] + m[1]), 0.5 * (m[0] + m[1]), m[2]],
+        (false, true) => [m[0], 0.5 * (m[1] + m[2]), 0.5 * (m[1] + m[2])],
+        (false, false) => m,
     }
 }
 

@@ -135,8 +135,8 @@ fn a_free_ellipsoid_flips_about_its_intermediate_axis_and_conserves_its_invarian
 }
 
 /// The principal moments of a rotated diagonal tensor are the diagonal (1e-12
-/// relative), and the principal frame maps the axes back; a tensor that is not positive
-/// definite is refused.
+/// relative), and the principal frame maps the axes back; an isotropic tensor keeps the
+/// given axes; a tensor that is not positive definite is refused.
 #[test]
 fn principal_axes_undo_a_rotation_and_bad_tensors_are_refused() {
     let (c, s) = (0.6f64, 0.8f64);
@@ -172,6 +172,19 @@ fn principal_axes_undo_a_rotation_and_bad_tensors_are_refused() {
         (w[2] - 1.0).abs() < 1e-12 && w[0].abs() < 1e-12 && w[1].abs() < 1e-12,
         "{w:?}"
     );
+    // Equal moments leave the axes to the geometry, not to round-off: a tensor isotropic
+    // up to round-off keeps the mesh's axes and the mean moment, whatever its scale.
+    for scale in [1.0, 3.7e-9] {
+        let noisy = [
+            [2.0, 1e-15, 0.0],
+            [1e-15, 2.0 + 4e-16, -2e-16],
+            [0.0, -2e-16, 2.0],
+        ]
+        .map(|row| row.map(|x| x * scale));
+        let iso = RigidInertia::new(1.0, noisy).unwrap();
+        assert_eq!(iso.principal_frame, [1.0, 0.0, 0.0, 0.0]);
+        assert!(iso.principal.iter().all(|&m| m == iso.principal[0]));
+    }
     assert!(RigidInertia::new(1.0, [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]]).is_err());
     assert!(RigidInertia::new(0.0, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).is_err());
 }
