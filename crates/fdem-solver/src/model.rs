@@ -91,6 +91,17 @@ pub struct InitialMotion {
     pub angular_velocity: [f64; 3],
 }
 
+impl InitialMotion {
+    /// The velocity of the point `x` of a body moving with this motion about `centre`:
+    /// `v + omega x (x - centre)` (m/s).
+    pub fn velocity_at(&self, x: [f64; 3], centre: [f64; 3]) -> [f64; 3] {
+        let r = [x[0] - centre[0], x[1] - centre[1], x[2] - centre[2]];
+        let u = fdem_core::geometry::cross(self.angular_velocity, r);
+        let v = self.velocity;
+        [v[0] + u[0], v[1] + u[1], v[2] + u[2]]
+    }
+}
+
 /// A sheet body ([`BodyKind::Sheet`]): nodes with masses and outward contact faces, no
 /// tetrahedra. Its in-plane forces are a contribution of the caller's.
 #[derive(Clone, Debug, PartialEq)]
@@ -212,15 +223,8 @@ impl ModelBuilder {
             &one.control_areas,
         )?;
         for x in &one.nodes {
-            let r = [
-                x[0] - placement.translation[0],
-                x[1] - placement.translation[1],
-                x[2] - placement.translation[2],
-            ];
-            let u = fdem_core::geometry::cross(motion.angular_velocity, r);
-            let v = motion.velocity;
             self.velocities
-                .push([v[0] + u[0], v[1] + u[1], v[2] + u[2]]);
+                .push(motion.velocity_at(*x, placement.translation));
         }
         self.reference.extend_from_slice(&one.nodes);
         self.masses.resize(self.reference.len(), 0.0);
@@ -291,10 +295,7 @@ impl ModelBuilder {
             self.reference.push(x);
             self.masses.push(lumped[n]);
         }
-        let centre = placement.translation;
-        let r = [c[0] - centre[0], c[1] - centre[1], c[2] - centre[2]];
-        let u = fdem_core::geometry::cross(motion.angular_velocity, r);
-        let v = [0, 1, 2].map(|k| motion.velocity[k] + u[k]);
+        let v = motion.velocity_at(c, placement.translation);
         let state = RigidState::new(
             &inertia,
             c,
