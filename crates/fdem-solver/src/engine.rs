@@ -3,7 +3,7 @@
 
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
-use crate::rigid::RigidPart;
+use crate::rigid::RigidBodies;
 use crate::{Body, BodyKind, BodyMotion, ContactForces, NodeState, SolverError};
 use rayon::prelude::*;
 use std::any::Any;
@@ -89,7 +89,7 @@ pub(crate) struct Assembled {
     pub(crate) connectivity: Vec<usize>,
     pub(crate) elastic: ElasticForces,
     pub(crate) contact: Option<ContactForces>,
-    pub(crate) rigid: Vec<RigidPart>,
+    pub(crate) rigid: RigidBodies,
     pub(crate) parts: Parts,
     pub(crate) gravity: [f64; 3],
     pub(crate) bound: StepBound,
@@ -112,7 +112,7 @@ pub struct Simulation {
     connectivity: Vec<usize>,
     elastic: ElasticForces,
     contact: Option<ContactForces>,
-    rigid: Vec<RigidPart>,
+    rigid: RigidBodies,
     parts: Parts,
     gravity: [f64; 3],
     time: f64,
@@ -455,8 +455,8 @@ impl Simulation {
         for c in &mut self.parts.constraints {
             powers.add(c.apply(view, forces)?);
         }
-        for part in &mut self.rigid {
-            part.gather(&state.positions, forces, self.gravity);
+        if !self.rigid.is_empty() {
+            self.rigid.gather(&state.positions, forces, self.gravity);
         }
         self.last_powers = powers;
         Ok(())
@@ -470,11 +470,9 @@ impl Simulation {
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
         kick_and_drift(&mut self.state, half, dt);
-        for part in &mut self.rigid {
-            part.kick(half);
-            part.state.drift(&part.inertia, dt);
-            part.place_nodes(&mut self.state.positions, &mut self.state.velocities);
-        }
+        let s = &mut self.state;
+        self.rigid
+            .kick_drift(half, dt, &mut s.positions, &mut s.velocities);
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.compute_forces() {
@@ -491,10 +489,8 @@ impl Simulation {
         self.contribution_work += dt * self.last_powers.external;
         self.damping_dissipated += dt * self.last_powers.damping;
         self.friction_dissipated += self.last_powers.friction_energy;
-        for part in &mut self.rigid {
-            part.kick(half);
-            part.place_nodes(&mut self.state.positions, &mut self.state.velocities);
-        }
+        let s = &mut self.state;
+        self.rigid.kick(half, &mut s.positions, &mut s.velocities);
         let finite = kick(&mut self.state, half);
         self.step = step;
         self.time = time;
@@ -617,7 +613,7 @@ impl Simulation {
     pub fn body_motion(&self, id: usize) -> BodyMotion {
         let body = &self.bodies[id];
         if body.kind == BodyKind::Rigid
-            && let Some(p) = self.rigid.iter().find(|p| p.body == id)
+            && let Some(p) = self.rigid.get(id)
         {
             return BodyMotion {
                 mass: p.inertia.mass,

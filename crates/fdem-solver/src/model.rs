@@ -305,7 +305,11 @@ impl ModelBuilder {
         );
         let part = RigidPart::new(id, first, offsets, inertia, state);
         self.velocities.resize(self.reference.len(), [0.0; 3]);
-        part.place_nodes(&mut self.reference, &mut self.velocities);
+        let nodes = first..self.reference.len();
+        part.place_nodes(
+            &mut self.reference[nodes.clone()],
+            &mut self.velocities[nodes],
+        );
         self.rigid.push(part);
         let first_element = self.n_elements();
         self.bodies.push(Body {
@@ -505,7 +509,7 @@ impl ModelBuilder {
             connectivity: self.connectivity,
             elastic,
             contact,
-            rigid: self.rigid,
+            rigid: crate::rigid::RigidBodies::new(self.rigid),
             parts: self.parts,
             gravity: self.gravity,
             bound,

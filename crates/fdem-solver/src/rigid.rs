@@ -280,18 +280,24 @@ impl RigidPart {
         self.state.kick(&self.inertia, self.force, self.torque, h);
     }
 
-    /// Positions and velocities of the body's nodes from its pose:
-    /// `x_i = X + R r_i`, `v_i = V + omega x (x_i - X)`.
-    pub(crate) fn place_nodes(&self, positions: &mut [[f64; 3]], velocities: &mut [[f64; 3]]) {
-        let w = self.state.angular_velocity(&self.inertia);
-        let c = self.state.position;
-        let v = self.state.velocity;
-        for (k, offset) in self.offsets.iter().enumerate() {
-            let x = self.state.point(*offset);
-            let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-            let u = fdem_core::geometry::cross(w, r);
-            positions[self.first + k] = x;
-            velocities[self.first + k] = [v[0] + u[0], v[1] + u[1], v[2] + u[2]];
+    /// Positions and velocities of the body's nodes (`x`, `v`: its own node range) from
+    /// its pose: `x_i = X + R r_i`, then [`RigidPart::place_velocities`].
+    pub(crate) fn place_nodes(&self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
+        for (xi, offset) in x.iter_mut().zip(&self.offsets) {
+            *xi = self.state.point(*offset);
+        }
+        self.place_velocities(x, v);
+    }
+
+    /// Velocities of the body's nodes at positions `x` (placed from the current pose):
+    /// `v_i = V + omega x (x_i - X)`.
+    pub(crate) fn place_velocities(&self, x: &[[f64; 3]], v: &mut [[f64; 3]]) {
+        let motion = crate::InitialMotion {
+            velocity: self.state.velocity,
+            angular_velocity: self.state.angular_velocity(&self.inertia),
+        };
+        for (vi, xi) in v.iter_mut().zip(x) {
+            *vi = motion.velocity_at(*xi, self.state.position);
         }
     }
 
@@ -301,8 +307,8 @@ impl RigidPart {
         let c = self.state.position;
         let mut force = g.map(|gk| self.inertia.mass * gk);
         let mut torque = [0.0; 3];
-        for k in 0..self.offsets.len() {
-            let (x, f) = (positions[self.first + k], forces[self.first + k]);
+        let nodes = self.first..self.first + self.offsets.len();
+        for (&x, &f) in positions[nodes.clone()].iter().zip(&forces[nodes]) {
             let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
             let t = fdem_core::geometry::cross(r, f);
             for j in 0..3 {
@@ -334,4 +340,98 @@ impl Frame {
     pub(crate) fn inverse_apply(&self, v: [f64; 3]) -> [f64; 3] {
         array(self.0.inverse_transform_vector(&Vector3::from(v)))
     }
+}
+
+/// The rigid bodies of a simulation, in increasing node order (their node ranges are
+/// disjoint), and the passes of the step over them, in parallel over bodies.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct RigidBodies {
+    parts: Vec<RigidPart>,
+}
+
+/// Bodies handled serially below this count per task (keeps rayon's overhead small).
+const SERIAL_BODIES: usize = 64;
+
+impl RigidBodies {
+    pub(crate) fn new(parts: Vec<RigidPart>) -> Self {
+        debug_assert!(parts.windows(2).all(|w| w[0].first < w[1].first));
+        RigidBodies { parts }
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+
+    pub(crate) fn iter(&self) -> impl Iterator<Item = &RigidPart> {
+        self.parts.iter()
+    }
+
+    /// The rigid body of body id `body`, if it is one.
+    pub(crate) fn get(&self, body: usize) -> Option<&RigidPart> {
+        let k = self.parts.binary_search_by_key(&body, |p| p.body).ok()?;
+        self.parts.get(k)
+    }
+
+    /// First half of a step: half kick with the last force and torque, drift over `dt`,
+    /// nodes placed from the new pose.
+    pub(crate) fn kick_drift(
+        &mut self,
+        half: f64,
+        dt: f64,
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+    ) {
+        with_nodes(&mut self.parts, x, v, 0, &|p, x, v| {
+            p.kick(half);
+            p.state.drift(&p.inertia, dt);
+            p.place_nodes(x, v);
+        });
+    }
+
+    /// Each body's force and torque from its nodes' forces (and its weight).
+    pub(crate) fn gather(&mut self, positions: &[[f64; 3]], forces: &[[f64; 3]], g: [f64; 3]) {
+        use rayon::prelude::*;
+        self.parts
+            .par_iter_mut()
+            .with_min_len(SERIAL_BODIES)
+            .for_each(|p| p.gather(positions, forces, g));
+    }
+
+    /// Second half kick, node velocities from the new momenta.
+    pub(crate) fn kick(&mut self, half: f64, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
+        with_nodes(&mut self.parts, x, v, 0, &|p, x, v| {
+            p.kick(half);
+            p.place_velocities(x, v);
+        });
+    }
+}
+
+/// A pass over one rigid body with its node positions and velocities.
+type PartPass<'a> = dyn Fn(&mut RigidPart, &mut [[f64; 3]], &mut [[f64; 3]]) + Sync + 'a;
+
+/// Calls `f` on every part with its own node ranges of `x` and `v` (which start at
+/// global node `offset`), splitting the parts in halves with `rayon::join`.
+fn with_nodes(
+    parts: &mut [RigidPart],
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+    offset: usize,
+    f: &PartPass<'_>,
+) {
+    if parts.len() <= SERIAL_BODIES {
+        for p in parts {
+            let r = p.first - offset..p.first - offset + p.offsets.len();
+            f(p, &mut x[r.clone()], &mut v[r]);
+        }
+        return;
+    }
+    let mid = parts.len() / 2;
+    let split = parts[mid].first;
+    let (left, right) = parts.split_at_mut(mid);
+    let (xl, xr) = x.split_at_mut(split - offset);
+    let (vl, vr) = v.split_at_mut(split - offset);
+    rayon::join(
+        || with_nodes(left, xl, vl, offset, f),
+        || with_nodes(right, xr, vr, split, f),
+    );
 }
