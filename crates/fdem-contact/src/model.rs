@@ -205,7 +205,7 @@ pub struct StableStep {
     pub body: u32,
     /// The larger of its `k_n`, `k_s` (N/m).
     pub stiffness: f64,
-    /// Its lumped mass (kg).
+    /// The reduced mass of the node and the lightest node of another body (kg).
     pub mass: f64,
     /// The damping ratio that goes with that stiffness.
     pub damping_ratio: f64,
@@ -293,6 +293,53 @@ pub struct ContactModel {
     sheets: Sheets,
 }
 
+/// The smallest spring-dashpot bound over the surface nodes (see
+/// [`ContactModel::stable_time_step`]); `masses` per surface node.
+fn stable_step(
+    params: &ContactParams,
+    surface: &ContactSurface,
+    coefficients: &[NodeCoefficients],
+    masses: &[f64],
+) -> Option<StableStep> {
+    // The lightest surface node of each body, then the two lightest bodies: a node's
+    // counterpart is the lightest body other than its own.
+    let mut lightest: std::collections::BTreeMap<u32, f64> = Default::default();
+    for (&body, &m) in surface.node_body.iter().zip(masses) {
+        let e = lightest.entry(body).or_insert(f64::INFINITY);
+        *e = e.min(m);
+    }
+    let mut by_mass: Vec<(f64, u32)> = lightest.iter().map(|(&b, &m)| (m, b)).collect();
+    by_mass.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let other = |body: u32| match by_mass.as_slice() {
+        [(m, b), ..] if *b != body => *m,
+        [_, (m, _), ..] => *m,
+        _ => f64::INFINITY,
+    };
+    let (beta_n, beta_s) = (params.damping, params.tangential_damping_ratio());
+    let mut stable: Option<StableStep> = None;
+    for (k, (&node, c)) in surface.surface_nodes.iter().zip(coefficients).enumerate() {
+        let body = surface.node_body[k];
+        let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
+        let (stiffness, damping_ratio) = if c.tangential_stiffness > c.normal_stiffness {
+            (c.tangential_stiffness, beta_s)
+        } else {
+            (c.normal_stiffness, beta_n)
+        };
+        let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
+        if stable.is_none_or(|s| dt < s.time_step) {
+            stable = Some(StableStep {
+                time_step: dt,
+                node,
+                body,
+                stiffness,
+                mass,
+                damping_ratio,
+            });
+        }
+    }
+    stable
+}
+
 impl ContactModel {
     /// Sets up the model.
     ///
@@ -335,35 +382,16 @@ impl ContactModel {
         }
         let mut coefficients = Vec::with_capacity(surface.surface_nodes.len());
         let mut node_masses = Vec::with_capacity(surface.surface_nodes.len());
-        let mut stable: Option<StableStep> = None;
-        let beta_n = params.damping;
-        let beta_s = params.tangential_damping_ratio();
         for (k, &node) in surface.surface_nodes.iter().enumerate() {
             let mass = masses[node];
             let body = surface.node_body[k];
             if !(mass.is_finite() && mass > 0.0) {
                 return Err(ContactError::InvalidMass { node, body, mass });
             }
-            let c = params.coefficients(surface.control_areas[k], mass);
-            let (stiffness, damping_ratio) = if c.tangential_stiffness > c.normal_stiffness {
-                (c.tangential_stiffness, beta_s)
-            } else {
-                (c.normal_stiffness, beta_n)
-            };
-            let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
-            if stable.is_none_or(|s| dt < s.time_step) {
-                stable = Some(StableStep {
-                    time_step: dt,
-                    node,
-                    body,
-                    stiffness,
-                    mass,
-                    damping_ratio,
-                });
-            }
-            coefficients.push(c);
+            coefficients.push(params.coefficients(surface.control_areas[k], mass));
             node_masses.push(mass);
         }
+        let stable = stable_step(&params, &surface, &coefficients, &node_masses);
         let n_chunks = surface.surface_nodes.len().div_ceil(CHUNK);
         Ok(ContactModel {
             params,
@@ -523,12 +551,43 @@ impl ContactModel {
     /// the node that sets it; `None` without surface nodes.
     ///
     /// Per node, `dt = 2 (sqrt(1 + beta^2) - beta) / sqrt(k / m)` with the larger of `k_n`,
-    /// `k_s`, its damping ratio, and the node's own lumped mass. This is exact for a node
-    /// against a wall. Against a face of a deformable body the spring also moves the face
-    /// nodes: with comparable masses the reduced mass is about `m / 2`, which shortens the
-    /// bound by up to `1 / sqrt(2)`; the solver's safety factor must cover that.
+    /// `k_s`, its damping ratio, and the reduced mass `m = 1 / (1 / m_i + 1 / m_o)` of the
+    /// node (`m_i`) and the lightest surface node of any other body (`m_o`): the spring
+    /// pushes the node and, in reaction, the nodes of the face it touches, and at a face
+    /// corner one face node takes the whole reaction. Without another body (walls only)
+    /// `m = m_i`, exact for a node against a wall. The masses are the lumped masses unless
+    /// [`ContactModel::set_bound_masses`] gave others (a rigid body's effective mass).
     pub fn stable_time_step(&self) -> Option<StableStep> {
         self.stable
+    }
+
+    /// Recomputes [`ContactModel::stable_time_step`] with `masses` (per global node, kg) in
+    /// place of the lumped masses: for a node of a rigid body, the body's effective mass
+    /// at that node. The dashpots keep the lumped masses (eq 3).
+    ///
+    /// # Errors
+    /// `masses` of another length than the model's nodes, or a surface-node mass that is
+    /// not finite and positive.
+    pub fn set_bound_masses(&mut self, masses: &[f64]) -> Result<(), ContactError> {
+        if masses.len() != self.n_nodes {
+            return Err(ContactError::LengthMismatch {
+                array: "bound masses",
+                expected: self.n_nodes,
+                found: masses.len(),
+                reason: "one per node of the model",
+            });
+        }
+        let mut bound = Vec::with_capacity(self.surface.surface_nodes.len());
+        for (k, &node) in self.surface.surface_nodes.iter().enumerate() {
+            let mass = masses[node];
+            if !(mass.is_finite() && mass > 0.0) {
+                let body = self.surface.node_body[k];
+                return Err(ContactError::InvalidMass { node, body, mass });
+            }
+            bound.push(mass);
+        }
+        self.stable = stable_step(&self.params, &self.surface, &self.coefficients, &bound);
+        Ok(())
     }
 
     /// Forces the next evaluation to rebuild the broad phase (for example after nodes were

@@ -373,12 +373,41 @@ fn stable_time_step_is_the_smallest_spring_dashpot_bound() {
     let model = ContactModel::new(params, surface, vec![], &masses, 1e-4).unwrap();
     let s = model.stable_time_step().unwrap();
     // Node 1: k_s = 2 p_n A = 1.44e7 N/m is the larger stiffness, beta_s = 0.1.
+    // Its spring also pushes the lightest node of the other body (3e-3 kg): reduced
+    // mass 1 / (1 / 1e-3 + 1 / 3e-3) = 7.5e-4 kg.
     assert_eq!((s.node, s.body), (1, 0));
     let k = 2.0 * 1.8e11 * 4e-5;
-    let expect = 2.0 * ((1.0f64 + 0.01).sqrt() - 0.1) / (k / 1e-3f64).sqrt();
+    let reduced = 7.5e-4;
+    assert!((s.mass - reduced).abs() < 1e-15);
+    let expect = 2.0 * ((1.0f64 + 0.01).sqrt() - 0.1) / (k / reduced).sqrt();
     assert!((s.time_step - expect).abs() < 1e-14 * expect);
-    assert_eq!(s.time_step, spring_dashpot_time_step(k, 1e-3, 0.1));
+    assert_eq!(s.time_step, spring_dashpot_time_step(k, s.mass, 0.1));
     assert!(s.to_string().contains("surface node 1 (body 0)"), "{s}");
+
+    // Other masses for the bound (a rigid body's effective masses): node 2 heavier, so
+    // node 1's counterpart is 1 kg and its reduced mass about its own.
+    let mut model = model;
+    model.set_bound_masses(&[1e-3, 1e-3, 1.0]).unwrap();
+    let s = model.stable_time_step().unwrap();
+    assert_eq!(s.node, 1);
+    assert!((s.mass - 1.0 / (1e3 + 1.0)).abs() < 1e-15);
+    assert!(model.set_bound_masses(&[1e-3, 1e-3]).is_err());
+    assert!(model.set_bound_masses(&[1e-3, 0.0, 1.0]).is_err());
+}
+
+#[test]
+fn stable_time_step_of_a_lone_body_is_its_nodes_against_a_wall() {
+    let surface = ContactSurface {
+        triangles: vec![],
+        triangle_body: vec![],
+        surface_nodes: vec![0, 1],
+        node_body: vec![0, 0],
+        control_areas: vec![1e-5, 1e-5],
+    };
+    let params = ContactParams::default();
+    let model = ContactModel::new(params, surface, vec![], &[2e-3, 1e-3], 1e-4).unwrap();
+    let s = model.stable_time_step().unwrap();
+    assert_eq!((s.node, s.mass), (1, 1e-3));
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
-use crate::rigid::RigidBodies;
+use crate::rigid::{RigidBodies, RigidState};
 use crate::{Body, BodyKind, BodyMotion, ContactForces, NodeState, SolverError};
 use rayon::prelude::*;
 use std::any::Any;
@@ -195,6 +195,28 @@ impl Simulation {
             positions: &mut self.state.positions,
             velocities: &mut self.state.velocities,
         }
+    }
+
+    /// The state of every rigid body (pose and momenta), in body order: with
+    /// [`Simulation::set_rigid_states`], what a saved state needs beyond the nodes.
+    pub fn rigid_states(&self) -> Vec<RigidState> {
+        self.rigid.iter().map(|p| p.state).collect()
+    }
+
+    /// Sets the state of every rigid body (one per rigid body, in body order, as
+    /// [`Simulation::rigid_states`] returns them) and places their nodes from it. Like
+    /// [`Simulation::nodes_mut`], the forces are re-evaluated at the next step or by
+    /// [`Simulation::rebase_energy`].
+    ///
+    /// # Errors
+    /// A count other than the number of rigid bodies, or a state that is not finite or
+    /// whose orientation is not a unit quaternion.
+    pub fn set_rigid_states(&mut self, states: &[RigidState]) -> Result<(), SolverError> {
+        self.rigid.set_states(
+            states,
+            &mut self.state.positions,
+            &mut self.state.velocities,
+        )
     }
 
     /// Sets the clock (simulated time and step count), e.g. when a saved state is

@@ -471,6 +471,7 @@ impl ModelBuilder {
                 self.walls,
                 &state.masses,
                 &sheets,
+                &self.rigid,
             )?),
             None if self.walls.is_empty() && sheets.is_empty() => None,
             None => {
@@ -519,15 +520,25 @@ impl ModelBuilder {
     }
 }
 
-/// The contact model of `settings` on `surface` and `walls`, with `sheets` declared.
+/// The contact model of `settings` on `surface` and `walls`, with `sheets` declared and
+/// the stable bound of `rigid` bodies' nodes from their effective masses.
 fn contact_stage(
     settings: ContactSettings,
     surface: ContactSurface,
     walls: Vec<Wall>,
     masses: &[f64],
     sheets: &[u32],
+    rigid: &[RigidPart],
 ) -> Result<ContactForces, SolverError> {
     let mut model = ContactModel::new(settings.params, surface, walls, masses, settings.margin)?;
+    if !rigid.is_empty() {
+        // A rigid body's node is as heavy as the body's effective mass there.
+        let mut bound_masses = masses.to_vec();
+        for part in rigid {
+            part.effective_masses(&mut bound_masses[part.first..part.first + part.offsets.len()]);
+        }
+        model.set_bound_masses(&bound_masses)?;
+    }
     if let Some(depth_limit) = settings.depth_limit {
         model.set_depth_limit(depth_limit)?;
     }

@@ -176,6 +176,26 @@ impl RigidState {
         }
     }
 
+    /// Checks that every number is finite and the orientation a unit quaternion (to
+    /// within `1e-9`), as a restored state must be.
+    pub fn check(&self) -> Result<(), String> {
+        let finite = self
+            .position
+            .iter()
+            .chain(&self.velocity)
+            .chain(&self.orientation)
+            .chain(&self.body_momentum)
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err("a position, velocity, orientation or momentum is not finite".into());
+        }
+        let norm = self.orientation.iter().map(|q| q * q).sum::<f64>().sqrt();
+        if (norm - 1.0).abs() > 1e-9 {
+            return Err(format!("orientation quaternion of norm {norm}, not 1"));
+        }
+        Ok(())
+    }
+
     /// Half kick (or any kick of duration `h`): `v += h F / m`, `pi += h R^T tau` with the
     /// force `force` (N) and the torque `torque` about the centre of mass (N m), both in
     /// the world frame.
@@ -275,6 +295,25 @@ impl RigidPart {
         }
     }
 
+    /// The body's effective mass at each of its nodes, for the contact bound: a force
+    /// `f n` at offset `r` from the centre accelerates the point along `n` by
+    /// `f (1 / m + (r x n) . I^-1 (r x n))`, and `|r x n|^2 / I_min` bounds the second
+    /// term over all directions `n`, so `1 / (1 / m + |r|^2 / I_min)` is the smallest
+    /// effective mass at that node. `out` is the body's own node range.
+    pub(crate) fn effective_masses(&self, out: &mut [f64]) {
+        let m = self.inertia.mass;
+        let i_min = self
+            .inertia
+            .principal
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        for (o, r) in out.iter_mut().zip(&self.offsets) {
+            let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            *o = 1.0 / (1.0 / m + r2 / i_min);
+        }
+    }
+
     /// A kick of duration `h` with the force and torque of the last evaluation.
     pub(crate) fn kick(&mut self, h: f64) {
         self.state.kick(&self.inertia, self.force, self.torque, h);
@@ -370,6 +409,32 @@ impl RigidBodies {
     pub(crate) fn get(&self, body: usize) -> Option<&RigidPart> {
         let k = self.parts.binary_search_by_key(&body, |p| p.body).ok()?;
         self.parts.get(k)
+    }
+
+    /// Sets every body's state (`states` in body order) and places its nodes in `x`, `v`.
+    pub(crate) fn set_states(
+        &mut self,
+        states: &[RigidState],
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+    ) -> Result<(), SolverError> {
+        if states.len() != self.parts.len() {
+            return Err(SolverError::InvalidScene(format!(
+                "{} rigid states given for {} rigid bodies; restore a state of the same model",
+                states.len(),
+                self.parts.len()
+            )));
+        }
+        for (p, s) in self.parts.iter().zip(states) {
+            s.check()
+                .map_err(|e| SolverError::InvalidScene(format!("rigid body {}: {e}", p.body)))?;
+        }
+        for (p, s) in self.parts.iter_mut().zip(states) {
+            p.state = *s;
+            let r = p.first..p.first + p.offsets.len();
+            p.place_nodes(&mut x[r.clone()], &mut v[r]);
+        }
+        Ok(())
     }
 
     /// First half of a step: half kick with the last force and torque, drift over `dt`,

@@ -360,8 +360,32 @@ pub enum ParticleModel {
 }
 
 impl ParticleModel {
-    fn is_default(&self) -> bool {
+    /// Whether this is the default model (serde skips writing it).
+    pub fn is_default(&self) -> bool {
         *self == ParticleModel::Deformable
+    }
+
+    /// The name used in TOML and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ParticleModel::Deformable => "deformable",
+            ParticleModel::Rigid => "rigid",
+        }
+    }
+}
+
+impl std::str::FromStr for ParticleModel {
+    type Err = String;
+
+    /// `"deformable"` or `"rigid"`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "deformable" => Ok(ParticleModel::Deformable),
+            "rigid" => Ok(ParticleModel::Rigid),
+            _ => Err(format!(
+                "unknown particle model '{s}'; use \"deformable\" or \"rigid\""
+            )),
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 use crate::spec::DEFAULT_SOLID_FRACTION;
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_mesh::{SphereSpec, sphere_mesh};
+use fdem_solver::ParticleModel;
 use serde::{Deserialize, Serialize};
 
 /// Nominal sphere volume `pi d^3 / 6` (m^3).
@@ -151,21 +152,25 @@ impl SpecimenSpec {
             key,
             message,
         })?;
+        let mesh_error = |e: fdem_mesh::MeshError| TriaxialError::Definition {
+            origin: self.name.clone(),
+            line: 0,
+            column: 0,
+            key: "mesh".into(),
+            message: e.to_string(),
+        };
         let template = sphere_mesh(&SphereSpec {
             level: self.mesh.level,
             order: self.mesh.order,
             diameter: 1.0,
             sizing: self.mesh.sizing,
         })
-        .map_err(|e| TriaxialError::Definition {
-            origin: self.name.clone(),
-            line: 0,
-            column: 0,
-            key: "mesh".into(),
-            message: e.to_string(),
-        })?;
-        let epp = template.n_elements() as u64;
-        let npp = template.n_nodes() as u64;
+        .map_err(mesh_error)?;
+        // A rigid particle simulates no elements and only its surface nodes.
+        let (epp, npp) = match self.model {
+            ParticleModel::Deformable => (template.n_elements() as u64, template.n_nodes() as u64),
+            ParticleModel::Rigid => (0, surface_node_count(&template).map_err(mesh_error)? as u64),
+        };
         let h = self.coarse_graining;
         let classes: Vec<ClassCount> = self
             .gradation
@@ -193,4 +198,16 @@ impl SpecimenSpec {
             solid_fraction: solid_volume / self.inner_volume(),
         })
     }
+}
+
+/// Surface nodes of one instance of `template` (the nodes of a rigid particle).
+fn surface_node_count(template: &fdem_mesh::TetMesh) -> Result<usize, fdem_mesh::MeshError> {
+    let mut one = fdem_mesh::MeshAssembly::new();
+    let placement = fdem_mesh::Placement {
+        scale: 1.0,
+        rotation: [1.0, 0.0, 0.0, 0.0],
+        translation: [0.0; 3],
+    };
+    one.push_instance(template, &placement)?;
+    Ok(one.surface_nodes.len())
 }

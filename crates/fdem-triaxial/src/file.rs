@@ -7,7 +7,8 @@
 //! 8       4             format version, u32 little-endian (FORMAT_VERSION)
 //! 12      8             header length L in bytes, u64 LE
 //! 20      L             header: UTF-8 TOML (format, versions, [specimen], [report])
-//! 20+L    8 x 3         particle count P, node count N, history count K (u64 LE)
+//! 20+L    8 x 4         particle count P, node count N, history count K, rigid
+//!                       count R (u64 LE)
 //!         8 x 3         dt (f64), time (f64), step (u64)
 //!         P x 8 x 8     per particle: diameter, centre x y z, quaternion w x y z (f64)
 //!         P x 8         per particle: size class (u64)
@@ -15,16 +16,20 @@
 //!         N x 3 x 8     velocities (f64)
 //!         K x 5 x 8     history: node (u64), counterpart (u64: body id, or 2^32 + wall
 //!                       index), tangential displacement x y z (f64)
+//!         R x 13 x 8    rigid particles in body order: centre of mass, its velocity,
+//!                       orientation w x y z, body-frame angular momentum (f64)
 //! end-8   8             FNV-1a 64-bit checksum of every byte before it (u64 LE)
 //! ```
 //! Numbers are stored as their IEEE-754 bits, so a reload is exact. The file is written
-//! to `NAME.part` and renamed when complete.
+//! to `NAME.part` and renamed when complete. Version 1 (before rigid particles) had no
+//! rigid count and no rigid block; it is still read.
 
 use crate::placement::PlacedParticle;
 use crate::prepare::{PreparationReport, PreparedSpecimen, Snapshot};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
 use fdem_core::fs::AtomicFile;
+use fdem_solver::RigidState;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -32,11 +37,17 @@ use std::path::Path;
 /// The eight bytes every specimen file starts with.
 pub const MAGIC: &[u8; 8] = b"FDEMSPEC";
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
+/// The oldest format version this build reads.
+const OLDEST_VERSION: u32 = 1;
 /// Bytes before the header text.
 const PREAMBLE: usize = 20;
-/// Bytes of the fixed-size block after the header.
-const FIXED: usize = 48;
+/// Bytes of the fixed-size block after the header (counts, dt, time, step) of `version`.
+const fn fixed_size(version: u32) -> usize {
+    if version >= 2 { 56 } else { 48 }
+}
+/// Numbers of one rigid particle's state.
+const RIGID_VALUES: u64 = 13;
 const WALL_FLAG: u64 = 1 << 32;
 
 /// The TOML header of a specimen file.
@@ -118,6 +129,7 @@ impl PreparedSpecimen {
             w.u64(self.particles.len() as u64)?;
             w.u64(s.positions.len() as u64)?;
             w.u64(s.history.len() as u64)?;
+            w.u64(s.rigid.len() as u64)?;
             w.f64(self.dt)?;
             w.f64(s.time)?;
             w.u64(s.step)?;
@@ -145,6 +157,17 @@ impl PreparedSpecimen {
                     w.f64(v)?;
                 }
             }
+            for r in &s.rigid {
+                let values = r
+                    .position
+                    .iter()
+                    .chain(&r.velocity)
+                    .chain(&r.orientation)
+                    .chain(&r.body_momentum);
+                for &v in values {
+                    w.f64(v)?;
+                }
+            }
             let sum = w.hash.0;
             w.inner.write_all(&sum.to_le_bytes())
         })();
@@ -159,10 +182,10 @@ impl PreparedSpecimen {
     /// definition or counts do not hold.
     pub fn load(path: &Path) -> Result<PreparedSpecimen, TriaxialError> {
         let bytes = std::fs::read(path).map_err(|e| TriaxialError::io("reading", path, e))?;
-        check_preamble(&bytes, path)?;
-        let layout = Layout::read(&bytes, path)?;
+        let version = check_preamble(&bytes, path)?;
+        let layout = Layout::read(&bytes, version, path)?;
         check_checksum(&bytes, path)?;
-        let header = read_header(&bytes[PREAMBLE..layout.body_start], path)?;
+        let header = read_header(&bytes[PREAMBLE..layout.body_start], version, path)?;
         let mut r = Reader {
             bytes: &bytes,
             at: layout.data_start,
@@ -182,6 +205,21 @@ impl PreparedSpecimen {
                 ),
             ));
         }
+        let rigid_expected = match header.specimen.model {
+            fdem_solver::ParticleModel::Rigid => n_particles,
+            fdem_solver::ParticleModel::Deformable => 0,
+        };
+        if layout.rigid != rigid_expected {
+            return Err(TriaxialError::file(
+                path,
+                format!(
+                    "holds {} rigid particle states, but its definition (model = \"{}\") \
+                     implies {rigid_expected}",
+                    layout.rigid,
+                    header.specimen.model.name()
+                ),
+            ));
+        }
         Ok(PreparedSpecimen {
             spec: header.specimen,
             particles,
@@ -193,8 +231,8 @@ impl PreparedSpecimen {
 }
 
 /// Refuses a file that does not start with [`MAGIC`], is shorter than the preamble, or is
-/// of another format version.
-fn check_preamble(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
+/// of a format version this build does not read; returns the version.
+fn check_preamble(bytes: &[u8], path: &Path) -> Result<u32, TriaxialError> {
     let bad = |m: String| TriaxialError::file(path, m);
     if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
         return Err(bad(
@@ -210,14 +248,14 @@ fn check_preamble(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
         )));
     }
     let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
-    if version != FORMAT_VERSION {
+    if !(OLDEST_VERSION..=FORMAT_VERSION).contains(&version) {
         return Err(bad(format!(
-            "specimen format version {version}, but this fdem ({}) reads version \
-             {FORMAT_VERSION} only; prepare the specimen again with this version",
+            "specimen format version {version}, but this fdem ({}) reads versions \
+             {OLDEST_VERSION} to {FORMAT_VERSION}; prepare the specimen again with this version",
             env!("CARGO_PKG_VERSION")
         )));
     }
-    Ok(())
+    Ok(version)
 }
 
 /// Where the parts of a specimen file lie: the end of the header and the stored counts.
@@ -229,12 +267,13 @@ struct Layout {
     particles: u64,
     nodes: u64,
     history: u64,
+    rigid: u64,
 }
 
 impl Layout {
     /// Reads the header length and the counts, and checks that the file's size is the one
     /// they imply.
-    fn read(bytes: &[u8], path: &Path) -> Result<Layout, TriaxialError> {
+    fn read(bytes: &[u8], version: u32, path: &Path) -> Result<Layout, TriaxialError> {
         let bad = |m: String| TriaxialError::file(path, m);
         let mut r = Reader { bytes, at: 12 };
         let truncated = |needed: u64| {
@@ -246,7 +285,7 @@ impl Layout {
         };
         let header_len = r.u64().ok_or_else(|| truncated(PREAMBLE as u64))?;
         let body_start = (PREAMBLE as u64).saturating_add(header_len);
-        let fixed_end = body_start.saturating_add(FIXED as u64 + 8);
+        let fixed_end = body_start.saturating_add(fixed_size(version) as u64 + 8);
         if (bytes.len() as u64) < fixed_end {
             return Err(truncated(fixed_end));
         }
@@ -256,10 +295,16 @@ impl Layout {
             r.u64().unwrap_or(0),
             r.u64().unwrap_or(0),
         );
+        let n_rigid = if version >= 2 {
+            r.u64().unwrap_or(0)
+        } else {
+            0
+        };
         let expected = [
             (n_particles, 9 * 8u64),
             (n_nodes, 6 * 8),
             (n_history, 5 * 8),
+            (n_rigid, RIGID_VALUES * 8),
         ]
         .iter()
         .try_fold(fixed_end, |acc, &(n, size)| {
@@ -282,6 +327,7 @@ impl Layout {
             particles: n_particles,
             nodes: n_nodes,
             history: n_history,
+            rigid: n_rigid,
         })
     }
 }
@@ -304,15 +350,15 @@ fn check_checksum(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
 }
 
 /// Parses the TOML header and checks its format and the specimen definition.
-fn read_header(header_bytes: &[u8], path: &Path) -> Result<Header, TriaxialError> {
+fn read_header(header_bytes: &[u8], version: u32, path: &Path) -> Result<Header, TriaxialError> {
     let bad = |m: String| TriaxialError::file(path, m);
     let text = std::str::from_utf8(header_bytes)
         .map_err(|_| bad("corrupted: the header is not UTF-8".into()))?;
     let header: Header = toml::from_str(text)
         .map_err(|e| bad(format!("the header does not parse: {}", e.message())))?;
-    if header.format != "fdem-specimen" || header.format_version != FORMAT_VERSION {
+    if header.format != "fdem-specimen" || header.format_version != version {
         return Err(bad(format!(
-            "the header says format `{}` version {}, not fdem-specimen version {FORMAT_VERSION}",
+            "the header says format `{}` version {}, not fdem-specimen version {version}",
             header.format, header.format_version
         )));
     }
@@ -352,10 +398,22 @@ fn read_body(
     let positions = vectors(layout.nodes);
     let velocities = vectors(layout.nodes);
     let history = read_history(r, layout.history, path)?;
+    let rigid = (0..layout.rigid)
+        .map(|_| {
+            let v: [f64; 13] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
+            RigidState {
+                position: [v[0], v[1], v[2]],
+                velocity: [v[3], v[4], v[5]],
+                orientation: [v[6], v[7], v[8], v[9]],
+                body_momentum: [v[10], v[11], v[12]],
+            }
+        })
+        .collect();
     let state = Snapshot {
         positions,
         velocities,
         history,
+        rigid,
         time,
         step,
     };

@@ -451,7 +451,7 @@ impl TestModel {
         model.set_time_step(match dt {
             Some(dt) => TimeStep::Fixed(dt),
             None => TimeStep::Automatic {
-                safety: spec.test.dt_safety,
+                safety: spec.test.dt_safety_for(spec.model),
             },
         });
         model.set_guard(Guard {
@@ -489,7 +489,7 @@ impl TestModel {
         Ok(model)
     }
 
-    /// The prepared state: particle nodes and friction history against particles and the
+    /// The prepared state: particle nodes, rigid particles' poses and momenta, and friction history against particles and the
     /// platens (preparation walls 1 and 2 are the test's walls 0 and 1); the test's clock
     /// and step count start at zero, and the energy balance from this state.
     fn restore_prepared(
@@ -507,6 +507,9 @@ impl TestModel {
         let nodes = self.sim.nodes_mut();
         nodes.positions[..n_particle_nodes].copy_from_slice(&snapshot.positions);
         nodes.velocities[..n_particle_nodes].copy_from_slice(&snapshot.velocities);
+        self.sim
+            .set_rigid_states(&snapshot.rigid)
+            .map_err(solver_error("set-up"))?;
         let history: Vec<_> = snapshot
             .history
             .iter()

@@ -13,8 +13,8 @@ use crate::placement::{Column, PlacedParticle, place_spheres};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
 use fdem_solver::{
-    ContactSection, MeshSection, ParticleModel, ParticleSection, Scene, Simulation,
-    SimulationSection, WallSection, WallType,
+    ContactSection, MeshSection, ParticleSection, RigidState, Scene, Simulation, SimulationSection,
+    WallSection, WallType,
 };
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -111,6 +111,8 @@ pub struct Snapshot {
     pub velocities: Vec<[f64; 3]>,
     /// Tangential history `(global node, counterpart, d_s in m)`.
     pub history: Vec<(usize, Counterpart, [f64; 3])>,
+    /// Pose and momenta of every rigid particle, in body order (their nodes follow them).
+    pub rigid: Vec<RigidState>,
     /// Simulated time (s).
     pub time: f64,
     /// Steps taken.
@@ -253,7 +255,7 @@ pub fn particle_sections(
             angular_velocity: None,
             orientation: Some(p.orientation),
             mesh: Some(mesh),
-            model: ParticleModel::default(),
+            model: spec.model,
         })
         .collect()
 }
@@ -347,6 +349,7 @@ impl Snapshot {
             positions: sim.state().positions.clone(),
             velocities: sim.state().velocities.clone(),
             history,
+            rigid: sim.rigid_states(),
             time: sim.time(),
             step: sim.step(),
         }
@@ -374,6 +377,8 @@ impl Snapshot {
         let nodes = sim.nodes_mut();
         nodes.positions.copy_from_slice(&self.positions);
         nodes.velocities.copy_from_slice(&self.velocities);
+        sim.set_rigid_states(&self.rigid)
+            .map_err(solver("restore"))?;
         sim.set_clock(self.time, self.step);
         let history: Vec<_> = self
             .history
@@ -505,6 +510,15 @@ fn quench(sim: &mut Simulation) -> Result<Snapshot, TriaxialError> {
         positions: sim.state().positions.clone(),
         velocities: vec![[0.0; 3]; sim.state().len()],
         history: history(sim),
+        rigid: sim
+            .rigid_states()
+            .into_iter()
+            .map(|r| RigidState {
+                velocity: [0.0; 3],
+                body_momentum: [0.0; 3],
+                ..r
+            })
+            .collect(),
         time: sim.time(),
         step: sim.step(),
     };
@@ -531,13 +545,19 @@ fn wall_stresses(spec: &SpecimenSpec, sim: &Simulation) -> (f64, f64) {
     (platen, radial / lateral)
 }
 
-/// Real solid fraction: volume of the deformed tetrahedra (corner nodes) over `volume`.
-fn real_solid_fraction(sim: &Simulation, volume: f64) -> f64 {
+/// Real solid fraction over `volume`: the deformed tetrahedra's volume (corner nodes)
+/// plus each rigid particle's, its mass over `density`.
+fn real_solid_fraction(sim: &Simulation, volume: f64, density: f64) -> f64 {
+    let rigid: f64 = sim
+        .particles()
+        .filter(|(_, b)| b.kind == fdem_solver::BodyKind::Rigid)
+        .map(|(id, _)| sim.body_motion(id).mass / density)
+        .sum();
     let npe = sim.nodes_per_element();
     let x = &sim.state().positions;
     let solid: f64 = sim
         .connectivity()
-        .chunks_exact(npe)
+        .chunks_exact(npe.max(1))
         .map(|e| {
             let (a, b, c, d) = (x[e[0]], x[e[1]], x[e[2]], x[e[3]]);
             let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
@@ -548,7 +568,7 @@ fn real_solid_fraction(sim: &Simulation, volume: f64) -> f64 {
                 / 6.0
         })
         .sum();
-    solid / volume
+    (solid + rigid) / volume
 }
 
 /// Checks of the prepared state in `sim` (platens fixed at 0 and `height`).
@@ -757,7 +777,7 @@ pub fn prepare(
         cpu_seconds: cpu.map(|c| c.elapsed().as_secs_f64()),
         threads: rayon::current_num_threads() as u64,
         solid_fraction_nominal: counts.solid_volume / inner_volume,
-        solid_fraction_real: real_solid_fraction(&sim, inner_volume),
+        solid_fraction_real: real_solid_fraction(&sim, inner_volume, spec.material.density),
         platen_stress,
         cylinder_stress,
         node_contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()) as u64,

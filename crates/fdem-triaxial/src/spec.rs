@@ -11,7 +11,7 @@ use fdem_solver::toml_input::{
     check_positive, check_vector, fraction, fraction_opt, level, non_negative, positive,
     positive_opt, vector,
 };
-use fdem_solver::{ContactSection, Field, MaterialSection, Role};
+use fdem_solver::{ContactSection, Field, MaterialSection, ParticleModel, Role};
 use serde::{Deserialize, Serialize};
 
 /// Tolerance on the sum of the mass fractions.
@@ -204,6 +204,11 @@ pub struct SpecimenSpec {
     /// `[mesh]`: default level 1 quadratic inscribed (the paper's particle).
     #[serde(default)]
     pub mesh: SpecimenMesh,
+    /// Model of every particle: `"deformable"` (default, the paper's FDEM) or `"rigid"`
+    /// (the mesh's surface moving as one rigid body with the solid mesh's mass
+    /// properties; docs/MODEL.md section 12).
+    #[serde(default, skip_serializing_if = "ParticleModel::is_default")]
+    pub model: ParticleModel,
     /// `[preparation]`: the dynamic method's settings.
     #[serde(default)]
     pub preparation: PreparationSection,
@@ -314,6 +319,7 @@ impl Preset {
             material: default_material(),
             contact: ContactSection::default(),
             mesh: SpecimenMesh::default(),
+            model: ParticleModel::default(),
             preparation: PreparationSection::default(),
             membrane: MembraneSection::default(),
             test: TestSection {

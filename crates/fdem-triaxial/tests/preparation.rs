@@ -52,6 +52,16 @@ fn small() -> &'static PreparedSpecimen {
     })
 }
 
+/// The small specimen with rigid particles.
+fn small_rigid() -> &'static PreparedSpecimen {
+    static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let text = format!("model = \"rigid\"\n{SMALL}");
+        let spec = SpecimenSpec::from_toml_str(&text, "small rigid").unwrap();
+        prepare(&spec, &mut Silent).unwrap()
+    })
+}
+
 fn pile() -> &'static PreparedSpecimen {
     static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
     CELL.get_or_init(|| {
@@ -164,6 +174,42 @@ fn a_restored_specimen_reproduces_the_checked_state_exactly() {
     }
 }
 
+#[test]
+fn a_rigid_specimen_is_prepared_with_its_poses_and_no_elements() {
+    let s = small_rigid();
+    let r = &s.report;
+    assert!(r.checks.passed(), "{:?}", r.checks);
+    assert_eq!((r.particles, r.elements), (56, 0));
+    assert_eq!(s.state.rigid.len(), 56);
+    // Every rigid particle rests: the final stop zeroed its momenta.
+    for state in &s.state.rigid {
+        assert_eq!(state.velocity, [0.0; 3]);
+        assert_eq!(state.body_momentum, [0.0; 3]);
+    }
+    // The nodes are where the poses put them once restored.
+    let sim = s.simulation().unwrap();
+    assert_eq!(bits(&sim.state().positions), bits(&s.state.positions));
+    // The solid fraction counts the rigid volumes: exactly the meshes' volume, the
+    // inscribed icosahedron's 0.6055 of the sphere's (rigid particles do not deform).
+    let mesh = sphere_mesh(&SphereSpec {
+        level: 0,
+        order: fdem_mesh::ElementOrder::Linear,
+        diameter: 0.02,
+        sizing: fdem_mesh::Sizing::Inscribed,
+    })
+    .unwrap();
+    let expected = r.solid_fraction_nominal * mesh.volume() / sphere_volume(0.02);
+    assert!(
+        (r.solid_fraction_real - expected).abs() < 1e-12 * expected,
+        "{} vs {expected}",
+        r.solid_fraction_real
+    );
+    // Refused: a deformable state into the rigid model.
+    let mut other = small().state.clone();
+    other.rigid = vec![];
+    assert!(other.restore_into(&mut s.simulation().unwrap(), true).is_err());
+}
+
 fn bits(v: &[[f64; 3]]) -> Vec<[u64; 3]> {
     v.iter().map(|x| x.map(f64::to_bits)).collect()
 }
@@ -171,7 +217,11 @@ fn bits(v: &[[f64; 3]]) -> Vec<[u64; 3]> {
 #[test]
 fn a_saved_specimen_reloads_bit_for_bit_and_steps_identically() {
     let dir = tempfile::tempdir().unwrap();
-    for (s, name) in [(small(), "small.fdemspec"), (pile(), "pile.fdemspec")] {
+    for (s, name) in [
+        (small(), "small.fdemspec"),
+        (pile(), "pile.fdemspec"),
+        (small_rigid(), "rigid.fdemspec"),
+    ] {
         let path = dir.path().join(name);
         s.save(&path).unwrap();
         assert!(!dir.path().join(format!("{name}.part")).exists());
@@ -240,10 +290,10 @@ fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
     assert!(refusal(&header).contains("checksum"));
 
     let mut version = good.clone();
-    version[8..12].copy_from_slice(&2u32.to_le_bytes());
+    version[8..12].copy_from_slice(&3u32.to_le_bytes());
     let m = refusal(&version);
     assert!(
-        m.contains("format version 2") && m.contains("version 1"),
+        m.contains("format version 3") && m.contains("versions 1 to 2"),
         "{m}"
     );
 

@@ -23,6 +23,25 @@ pub enum OrderArg {
     Quadratic,
 }
 
+/// Particle model as typed on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelArg {
+    /// Elastic tetrahedral meshes (FDEM, the paper's model).
+    Deformable,
+    /// Rigid bodies with the meshes' surfaces and mass properties.
+    Rigid,
+}
+
+impl ModelArg {
+    /// The model this names.
+    pub fn model(self) -> fdem_solver::ParticleModel {
+        match self {
+            ModelArg::Deformable => fdem_solver::ParticleModel::Deformable,
+            ModelArg::Rigid => fdem_solver::ParticleModel::Rigid,
+        }
+    }
+}
+
 /// Arguments of `fdem specimen`.
 #[derive(clap::Args, Debug)]
 pub struct SpecimenArgs {
@@ -56,6 +75,9 @@ pub struct SpecimenArgs {
     /// Override the element order.
     #[arg(long, value_enum)]
     order: Option<OrderArg>,
+    /// Override the particle model.
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
     /// Override the placement seed.
     #[arg(long)]
     seed: Option<u64>,
@@ -174,6 +196,9 @@ fn definition(args: &SpecimenArgs) -> anyhow::Result<SpecimenSpec> {
             OrderArg::Linear => ElementOrder::Linear,
             OrderArg::Quadratic => ElementOrder::Quadratic,
         };
+    }
+    if let Some(model) = args.model {
+        spec.model = model.model();
     }
     if let Some(seed) = args.seed {
         spec.seed = seed;

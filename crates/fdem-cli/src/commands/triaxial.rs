@@ -1,7 +1,7 @@
 //! `fdem triaxial`: the numerical triaxial test end to end (docs/TRIAXIAL.md): prepare
 //! the specimen (or reuse a prepared one), consolidate, shear, write the outputs.
 
-use crate::commands::specimen::{OrderArg, PreparationProgress, phase_bar};
+use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, phase_bar};
 use anyhow::{Context, bail};
 use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
@@ -42,6 +42,9 @@ pub struct TriaxialArgs {
     /// Override the mesh subdivision level (0 to 4).
     #[arg(long)]
     level: Option<u32>,
+    /// Override the particle model.
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
     /// Override the target axial strain.
     #[arg(long)]
     strain: Option<f64>,
@@ -72,6 +75,9 @@ fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
     }
     if let Some(level) = args.level {
         spec.mesh.level = level;
+    }
+    if let Some(model) = args.model {
+        spec.model = model.model();
     }
     if let Some(strain) = args.strain {
         spec.test.target_strain = strain;
