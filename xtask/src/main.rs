@@ -103,7 +103,9 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
     let mut args: Vec<String> = rest.to_vec();
     // Rigid particles of a preset get the linear surface (42 contact nodes at level 1)
     // unless --order says otherwise.
-    let rigid = rest.windows(2).any(|w| w[0] == "--model" && w[1] == "rigid")
+    let rigid = rest
+        .windows(2)
+        .any(|w| w[0] == "--model" && w[1] == "rigid")
         || given("--model=rigid");
     let preset = !(given("--config") || given("--specimen") || quick);
     if !chooses_specimen {

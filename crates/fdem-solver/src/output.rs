@@ -114,10 +114,11 @@ impl VtkSeries {
     }
 
     /// Writes one frame (displacement, velocity, body id per node; stress and body per
-    /// element) and rewrites the collection so that it always lists complete frames.
+    /// element) and rewrites the collection so that it always lists complete frames. A
+    /// model without elements (rigid particles only) is written as the rigid particles'
+    /// surface triangles, with the body per triangle and no stress.
     pub fn frame(&mut self, sim: &Simulation) -> Result<(), SolverError> {
         let s = &sim.state();
-        let (connectivity, npe) = (&sim.connectivity(), sim.nodes_per_element());
         let displacement: Vec<f64> = s
             .positions
             .iter()
@@ -126,26 +127,32 @@ impl VtkSeries {
             .collect();
         let velocity: Vec<f64> = s.velocities.iter().flatten().copied().collect();
         let mut node_body = vec![0.0; s.len()];
-        let mut cell_body = Vec::with_capacity(connectivity.len() / npe.max(1));
         for (id, b) in sim.bodies().iter().enumerate() {
             node_body[b.nodes.clone()].fill(id as f64);
-            cell_body.extend(std::iter::repeat_n(id as f64, b.elements.len()));
         }
-        // Full symmetric tensor, 9 components row by row, as ParaView expects.
-        let stress: Vec<f64> = sim
-            .elastic()
-            .stresses(&s.positions)?
-            .iter()
-            .flat_map(|t| {
-                let [xx, yy, zz, yz, xz, xy] = *t;
-                [xx, xy, xz, xy, yy, yz, xz, yz, zz]
-            })
-            .collect();
+        let cells = if sim.nodes_per_element() == 0 {
+            rigid_triangles(sim)
+        } else {
+            element_cells(sim)?
+        };
+        let mut cell_fields = Vec::with_capacity(2);
+        if let Some(stress) = &cells.stress {
+            cell_fields.push(VtuField {
+                name: "stress",
+                components: 9,
+                values: stress,
+            });
+        }
+        cell_fields.push(VtuField {
+            name: "body",
+            components: 1,
+            values: &cells.body,
+        });
         let name = format!("frame_{:06}.vtu", self.entries.len());
         let frame = VtuFrame {
             points: &s.positions,
-            cells: connectivity,
-            nodes_per_cell: npe,
+            cells: &cells.connectivity,
+            nodes_per_cell: cells.nodes_per_cell,
             point_fields: vec![
                 VtuField {
                     name: "displacement",
@@ -163,24 +170,69 @@ impl VtkSeries {
                     values: &node_body,
                 },
             ],
-            cell_fields: vec![
-                VtuField {
-                    name: "stress",
-                    components: 9,
-                    values: &stress,
-                },
-                VtuField {
-                    name: "body",
-                    components: 1,
-                    values: &cell_body,
-                },
-            ],
+            cell_fields,
         };
         write_vtu(&self.dir.join("frames").join(&name), &frame)?;
         self.entries.push((sim.time(), format!("frames/{name}")));
         write_pvd(&self.dir.join("frames.pvd"), &self.entries)?;
         Ok(())
     }
+}
+
+/// The cells of a frame.
+struct Cells {
+    connectivity: Vec<usize>,
+    nodes_per_cell: usize,
+    /// Body id per cell.
+    body: Vec<f64>,
+    /// Cauchy stress per cell, 9 components row by row (elements only).
+    stress: Option<Vec<f64>>,
+}
+
+/// The elements as cells, with the body and the stress tensor of each (9 components row
+/// by row, as ParaView expects).
+fn element_cells(sim: &Simulation) -> Result<Cells, SolverError> {
+    let mut cell_body = Vec::with_capacity(sim.n_elements());
+    for (id, b) in sim.bodies().iter().enumerate() {
+        cell_body.extend(std::iter::repeat_n(id as f64, b.elements.len()));
+    }
+    let stress: Vec<f64> = sim
+        .elastic()
+        .stresses(&sim.state().positions)?
+        .iter()
+        .flat_map(|t| {
+            let [xx, yy, zz, yz, xz, xy] = *t;
+            [xx, xy, xz, xy, yy, yz, xz, yz, zz]
+        })
+        .collect();
+    Ok(Cells {
+        connectivity: sim.connectivity().to_vec(),
+        nodes_per_cell: sim.nodes_per_element(),
+        body: cell_body,
+        stress: Some(stress),
+    })
+}
+
+/// The surface triangles of the rigid bodies as cells, with the body of each.
+fn rigid_triangles(sim: &Simulation) -> Cells {
+    let mut cells = Cells {
+        connectivity: Vec::new(),
+        nodes_per_cell: 3,
+        body: Vec::new(),
+        stress: None,
+    };
+    let Some(contact) = sim.contact() else {
+        return cells;
+    };
+    let surface = contact.model().surface();
+    let bodies = sim.bodies();
+    for (t, &b) in surface.triangles.iter().zip(&surface.triangle_body) {
+        if bodies[b as usize].kind == crate::BodyKind::Rigid {
+            cells.connectivity.extend_from_slice(t);
+            cells.body.push(f64::from(b));
+        }
+    }
+    cells
 }
 
 /// Appends one row per wall to `walls.csv`: the force the particles exert on it (N).

@@ -295,3 +295,41 @@ fn a_free_body_obeys_exact_scaling() {
         assert!((eb.kinetic / (h.powi(3) * ea.kinetic) - 1.0).abs() < 1e-9);
     }
 }
+
+/// A scene of rigid particles only writes its frames as the particles' surface
+/// triangles (VTK_TRIANGLE), one `body` value per triangle, and no stress.
+#[test]
+fn rigid_particles_are_written_as_their_surface_triangles() {
+    let text = r#"
+[simulation]
+duration = 2.0e-4
+dt_safety = 0.4
+output_interval = 1.0e-4
+[material]
+density = 2650.0
+youngs_modulus = 40.0e9
+poisson_ratio = 0.2
+[[particle]]
+diameter = 0.01
+center = [0.0, 0.0, 0.0]
+model = "rigid"
+[[particle]]
+diameter = 0.01
+center = [0.0102, 0.0, 0.0]
+velocity = [-1.0, 0.0, 0.0]
+model = "rigid"
+"#;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::from_toml_str(text, "rigid.toml").unwrap();
+    let options = RunOptions {
+        out_dir: dir.path().to_path_buf(),
+        vtk: true,
+        contacts: false,
+    };
+    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    let vtu = std::fs::read_to_string(dir.path().join("frames/frame_000000.vtu")).unwrap();
+    // Level 1: 42 surface nodes and 80 triangles per particle.
+    assert!(vtu.contains("NumberOfPoints=\"84\""), "{}", &vtu[..300]);
+    assert!(vtu.contains("NumberOfCells=\"160\""), "{}", &vtu[..300]);
+    assert!(!vtu.contains("Name=\"stress\""));
+}

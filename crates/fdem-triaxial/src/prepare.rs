@@ -320,7 +320,10 @@ fn scene(
 
 /// The time step of a specimen: `dt_safety` times the stable bound of one particle of
 /// each simulated size (the bounds are per particle: the assembled elastic bound combined
-/// with the per-node contact springs), with the returned bound and its source.
+/// with the per-node contact springs), with the returned bound and its source. With one
+/// size the probe has no second body, so the contact springs count the node's own mass
+/// only, not the reduced mass with another body's node (docs/SPECIMENS.md, "Rigid
+/// specimens").
 pub fn specimen_time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), TriaxialError> {
     let sizes = spec.simulated()?.sizes;
     let d_max = sizes.iter().copied().fold(0.0, f64::max);

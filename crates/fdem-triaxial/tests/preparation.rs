@@ -207,7 +207,11 @@ fn a_rigid_specimen_is_prepared_with_its_poses_and_no_elements() {
     // Refused: a deformable state into the rigid model.
     let mut other = small().state.clone();
     other.rigid = vec![];
-    assert!(other.restore_into(&mut s.simulation().unwrap(), true).is_err());
+    assert!(
+        other
+            .restore_into(&mut s.simulation().unwrap(), true)
+            .is_err()
+    );
 }
 
 fn bits(v: &[[f64; 3]]) -> Vec<[u64; 3]> {
