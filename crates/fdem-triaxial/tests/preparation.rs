@@ -52,6 +52,17 @@ fn small() -> &'static PreparedSpecimen {
     })
 }
 
+/// The mesh of one particle of the small specimen (level 0, linear, 20 mm inscribed).
+fn small_particle_mesh() -> fdem_mesh::TetMesh {
+    sphere_mesh(&SphereSpec {
+        level: 0,
+        order: fdem_mesh::ElementOrder::Linear,
+        diameter: 0.02,
+        sizing: fdem_mesh::Sizing::Inscribed,
+    })
+    .unwrap()
+}
+
 /// The small specimen with rigid particles.
 fn small_rigid() -> &'static PreparedSpecimen {
     static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
@@ -106,13 +117,7 @@ fn compaction_reaches_the_target_height_with_the_solid_fraction_it_implies() {
     // volume) of the inscribed level-0 mesh, up to the particles' elastic deformation.
     let nominal = 56.0 * sphere_volume(0.02) / spec.inner_volume();
     assert!((r.solid_fraction_nominal - nominal).abs() < 1e-14);
-    let mesh = sphere_mesh(&SphereSpec {
-        level: 0,
-        order: fdem_mesh::ElementOrder::Linear,
-        diameter: 0.02,
-        sizing: fdem_mesh::Sizing::Inscribed,
-    })
-    .unwrap();
+    let mesh = small_particle_mesh();
     let ratio = mesh.volume() / sphere_volume(0.02);
     assert!((ratio - 0.6055).abs() < 1e-4);
     let expected = nominal * ratio;
@@ -191,13 +196,7 @@ fn a_rigid_specimen_is_prepared_with_its_poses_and_no_elements() {
     assert_eq!(bits(&sim.state().positions), bits(&s.state.positions));
     // The solid fraction counts the rigid volumes: exactly the meshes' volume, the
     // inscribed icosahedron's 0.6055 of the sphere's (rigid particles do not deform).
-    let mesh = sphere_mesh(&SphereSpec {
-        level: 0,
-        order: fdem_mesh::ElementOrder::Linear,
-        diameter: 0.02,
-        sizing: fdem_mesh::Sizing::Inscribed,
-    })
-    .unwrap();
+    let mesh = small_particle_mesh();
     let expected = r.solid_fraction_nominal * mesh.volume() / sphere_volume(0.02);
     assert!(
         (r.solid_fraction_real - expected).abs() < 1e-12 * expected,
