@@ -504,12 +504,7 @@ impl TestModel {
                 snapshot.positions.len()
             )));
         }
-        let nodes = self.sim.nodes_mut();
-        nodes.positions[..n_particle_nodes].copy_from_slice(&snapshot.positions);
-        nodes.velocities[..n_particle_nodes].copy_from_slice(&snapshot.velocities);
-        self.sim
-            .set_rigid_states(&snapshot.rigid)
-            .map_err(solver_error("set-up"))?;
+        snapshot.place_particles(&mut self.sim)?;
         let history: Vec<_> = snapshot
             .history
             .iter()

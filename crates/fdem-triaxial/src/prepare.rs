@@ -358,6 +358,27 @@ impl Snapshot {
         }
     }
 
+    /// Places the particles of `sim` (its first nodes, in the same order) in this state:
+    /// node positions and velocities, then the rigid particles' poses and momenta (which
+    /// place their nodes again, from the pose).
+    pub fn place_particles(&self, sim: &mut Simulation) -> Result<(), TriaxialError> {
+        let n = self.positions.len();
+        if self.velocities.len() != n || n > sim.state().len() {
+            return Err(TriaxialError::Solver {
+                phase: "restore",
+                cause: fdem_solver::SolverError::InvalidScene(format!(
+                    "the snapshot has {n} positions and {} velocities for a simulation of {} nodes",
+                    self.velocities.len(),
+                    sim.state().len()
+                )),
+            });
+        }
+        let nodes = sim.nodes_mut();
+        nodes.positions[..n].copy_from_slice(&self.positions);
+        nodes.velocities[..n].copy_from_slice(&self.velocities);
+        sim.set_rigid_states(&self.rigid).map_err(solver("restore"))
+    }
+
     /// Restores this state into `sim` (built on the same particles): positions,
     /// velocities, time, step count and friction history (entries against walls only
     /// with `keep_wall_history`), then re-evaluates the forces and makes the restored
@@ -377,11 +398,7 @@ impl Snapshot {
                 )),
             });
         }
-        let nodes = sim.nodes_mut();
-        nodes.positions.copy_from_slice(&self.positions);
-        nodes.velocities.copy_from_slice(&self.velocities);
-        sim.set_rigid_states(&self.rigid)
-            .map_err(solver("restore"))?;
+        self.place_particles(sim)?;
         sim.set_clock(self.time, self.step);
         let history: Vec<_> = self
             .history
