@@ -190,6 +190,9 @@ fn principal_axes_undo_a_rotation_and_bad_tensors_are_refused() {
 }
 
 mod in_the_engine {
+    /// The `[material]` of these scenes: rock (docs/MODEL.md section 8).
+    const ROCK: &str = "[material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2";
+
     use fdem_contact::{ContactParams, Wall};
     use fdem_elastic::Material;
     use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
@@ -343,14 +346,12 @@ mod in_the_engine {
     #[test]
     fn a_mixed_scene_conserves_linear_momentum_in_a_frictional_collision() {
         let scene = fdem_solver::Scene::from_toml_str(
-            r#"
+            &format!(
+                r#"
 [simulation]
 duration = 1.0
 dt_safety = 0.5
-[material]
-density = 2650.0
-youngs_modulus = 40.0e9
-poisson_ratio = 0.2
+{ROCK}
 [[particle]]
 diameter = 0.01
 center = [0.0, 0.0, 0.0]
@@ -359,8 +360,9 @@ model = "rigid"
 [[particle]]
 diameter = 0.01
 center = [0.01003, 0.003, 0.0]
-mesh = { level = 1, order = "quadratic" }
-"#,
+mesh = {{ level = 1, order = "quadratic" }}
+"#
+            ),
             "mixed",
         )
         .unwrap();
@@ -411,10 +413,7 @@ dt_safety = 0.5
 # balance books as an error of some percent in an oblique collision of rigid facets
 # (docs/TRIAXIAL.md, "Energy balance"); this test is about the rebound.
 energy_tolerance = 0.3
-[material]
-density = 2650.0
-youngs_modulus = 40.0e9
-poisson_ratio = 0.2
+{ROCK}
 [[particle]]
 diameter = 0.01
 center = [0.0, 0.0, 0.0]
