@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use fdem_mesh::{
-    ElementOrder, MeshAssembly, MeshError, Placement, Sizing, SphereSpec, VtuFrame, sphere_mesh,
-    write_pvd, write_vtu,
+    CellNodes, ElementOrder, MeshAssembly, MeshError, Placement, Sizing, SphereSpec, VtuFrame,
+    sphere_mesh, write_pvd, write_vtu,
 };
 
 fn main() -> Result<(), MeshError> {
@@ -31,7 +31,7 @@ fn main() -> Result<(), MeshError> {
         &VtuFrame {
             points: &quadratic.nodes,
             cells: &triangles,
-            nodes_per_cell: 3,
+            cell_nodes: CellNodes::Uniform(3),
             point_fields: vec![],
             cell_fields: vec![],
         },

@@ -28,6 +28,16 @@ pub enum MeshError {
         diameter: f64,
     },
 
+    /// Ellipsoid axes with a component that is zero, negative, infinite or NaN.
+    #[error(
+        "ellipsoid axes {axes:?} are invalid; give three finite numbers greater than 0 \
+         (each relative to the diameter; [1, 1, 1] is the sphere)"
+    )]
+    InvalidAxes {
+        /// The axes that were given.
+        axes: [f64; 3],
+    },
+
     /// A placement scale is zero, negative, infinite or NaN.
     #[error("placement scale {scale} is invalid; give a finite scale greater than 0")]
     InvalidScale {

@@ -77,4 +77,4 @@ pub use mesh::{
     ElementOrder, MeshQuality, Surface, TET_EDGES, TetMesh, VolumeProperties, volume_properties,
 };
 pub use sphere::{MAX_LEVEL, Sizing, SphereSpec, sphere_mesh};
-pub use vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
+pub use vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};

@@ -152,6 +152,32 @@ impl TetMesh {
         self.elements.len() / self.order.nodes_per_element()
     }
 
+    /// The mesh stretched along its axes, `x_k -> axes[k] x_k`, with the surface's control
+    /// areas recomputed: a sphere template of radius `r` becomes an ellipsoid of semi-axes
+    /// `axes[k] r` (its vertices on the ellipsoid, as the sphere's are on the sphere). The
+    /// map is affine, so straight edges stay straight and mid-edge nodes stay midpoints: a
+    /// quadratic mesh stays a valid one, and volumes scale by `axes[0] axes[1] axes[2]`.
+    ///
+    /// # Errors
+    /// [`MeshError::InvalidAxes`] unless every component is finite and > 0.
+    pub fn stretched(&self, axes: [f64; 3]) -> Result<TetMesh, MeshError> {
+        if !axes.iter().all(|a| a.is_finite() && *a > 0.0) {
+            return Err(MeshError::InvalidAxes { axes });
+        }
+        let nodes: Vec<[f64; 3]> = self
+            .nodes
+            .iter()
+            .map(|x| [axes[0] * x[0], axes[1] * x[1], axes[2] * x[2]])
+            .collect();
+        let surface = Surface::from_triangles(self.surface.triangles.clone(), &nodes);
+        Ok(TetMesh {
+            order: self.order,
+            nodes,
+            elements: self.elements.clone(),
+            surface,
+        })
+    }
+
     /// Node ids of element `e` (4 or 10 of them).
     ///
     /// # Panics

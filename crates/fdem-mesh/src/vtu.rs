@@ -32,16 +32,26 @@ pub struct VtuField<'a> {
     pub values: &'a [f64],
 }
 
+/// How many nodes each cell of a frame has: 3 (VTK_TRIANGLE = 5), 4 (VTK_TETRA = 10) or
+/// 10 (VTK_QUADRATIC_TETRA = 24).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CellNodes<'a> {
+    /// Every cell has this many nodes.
+    Uniform(usize),
+    /// The node count of each cell in turn (a frame that mixes cell types, for example
+    /// linear and quadratic tetrahedra beside surface triangles).
+    PerCell(&'a [usize]),
+}
+
 /// One unstructured-grid frame to write.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VtuFrame<'a> {
     /// Point positions.
     pub points: &'a [[f64; 3]],
-    /// Flat cell connectivity, `nodes_per_cell` point ids per cell.
+    /// Flat cell connectivity: the point ids of each cell in turn.
     pub cells: &'a [usize],
-    /// 4 (VTK_TETRA = 10), 10 (VTK_QUADRATIC_TETRA = 24) or 3 (VTK_TRIANGLE = 5); all cells
-    /// of a frame have the same type.
-    pub nodes_per_cell: usize,
+    /// The node count of the cells.
+    pub cell_nodes: CellNodes<'a>,
     /// Fields with one entry per point.
     pub point_fields: Vec<VtuField<'a>>,
     /// Fields with one entry per cell.
@@ -49,12 +59,50 @@ pub struct VtuFrame<'a> {
 }
 
 impl VtuFrame<'_> {
-    /// Number of cells (0 if `nodes_per_cell` is 0).
+    /// Number of cells (0 for a uniform node count of 0).
     pub fn n_cells(&self) -> usize {
-        self.cells
-            .len()
-            .checked_div(self.nodes_per_cell)
-            .unwrap_or(0)
+        match self.cell_nodes {
+            CellNodes::Uniform(npc) => self.cells.len().checked_div(npc).unwrap_or(0),
+            CellNodes::PerCell(sizes) => sizes.len(),
+        }
+    }
+
+    /// The node count of every cell, checked against the connectivity's length.
+    fn cell_sizes(&self) -> Result<Vec<usize>, MeshError> {
+        let bad = |reason: String| Err(MeshError::InvalidFrame { reason });
+        let sizes = match self.cell_nodes {
+            CellNodes::Uniform(npc) => {
+                if cell_type(npc).is_none() {
+                    return bad(format!(
+                        "nodes_per_cell is {npc}; use 4 (linear tetra), 10 (quadratic tetra) or 3 (triangle)"
+                    ));
+                }
+                if !self.cells.len().is_multiple_of(npc) {
+                    return bad(format!(
+                        "the cell array has {} entries, which is not a multiple of nodes_per_cell = {npc}",
+                        self.cells.len()
+                    ));
+                }
+                vec![npc; self.cells.len() / npc]
+            }
+            CellNodes::PerCell(sizes) => {
+                if let Some(c) = sizes.iter().position(|&n| cell_type(n).is_none()) {
+                    return bad(format!(
+                        "cell {c} has {} nodes; use 4 (linear tetra), 10 (quadratic tetra) or 3 (triangle)",
+                        sizes[c]
+                    ));
+                }
+                let total: usize = sizes.iter().sum();
+                if total != self.cells.len() {
+                    return bad(format!(
+                        "the cells' node counts add up to {total}, but the cell array has {} entries",
+                        self.cells.len()
+                    ));
+                }
+                sizes.to_vec()
+            }
+        };
+        Ok(sizes)
     }
 
     /// Checks that the arrays fit together.
@@ -62,28 +110,29 @@ impl VtuFrame<'_> {
     /// # Errors
     /// [`MeshError::InvalidFrame`] naming the inconsistency.
     pub fn validate(&self) -> Result<(), MeshError> {
+        self.checked_sizes().map(|_| ())
+    }
+
+    /// [`VtuFrame::validate`], giving the node count of every cell.
+    fn checked_sizes(&self) -> Result<Vec<usize>, MeshError> {
         let bad = |reason: String| Err(MeshError::InvalidFrame { reason });
-        let npc = self.nodes_per_cell;
-        if cell_type(npc).is_none() {
-            return bad(format!(
-                "nodes_per_cell is {npc}; use 4 (linear tetra), 10 (quadratic tetra) or 3 (triangle)"
-            ));
-        }
-        if !self.cells.len().is_multiple_of(npc) {
-            return bad(format!(
-                "the cell array has {} entries, which is not a multiple of nodes_per_cell = {npc}",
-                self.cells.len()
-            ));
-        }
+        let sizes = self.cell_sizes()?;
         let n_points = self.points.len();
         if let Some(k) = self.cells.iter().position(|&i| i >= n_points) {
+            let cell = sizes
+                .iter()
+                .scan(0, |end, &n| {
+                    *end += n;
+                    Some(*end)
+                })
+                .position(|end| end > k)
+                .unwrap_or(0);
             return bad(format!(
-                "cell {} refers to point {}, but the frame has only {n_points} points",
-                k / npc,
+                "cell {cell} refers to point {}, but the frame has only {n_points} points",
                 self.cells[k]
             ));
         }
-        let n_cells = self.n_cells();
+        let n_cells = sizes.len();
         for (kind, fields, count) in [
             ("point", &self.point_fields, n_points),
             ("cell", &self.cell_fields, n_cells),
@@ -124,7 +173,7 @@ impl VtuFrame<'_> {
                 }
             }
         }
-        Ok(())
+        Ok(sizes)
     }
 }
 
@@ -164,20 +213,24 @@ fn attribute(f: &VtuField<'_>) -> Attribute {
 /// [`MeshError::InvalidFrame`] for inconsistent arrays, [`MeshError::NoFileName`],
 /// [`MeshError::Io`] if the file cannot be written, [`MeshError::Vtk`] if encoding fails.
 pub fn write_vtu(path: &Path, frame: &VtuFrame) -> Result<(), MeshError> {
-    frame.validate()?;
-    let npc = frame.nodes_per_cell;
-    let n_cells = frame.n_cells();
-    let cell_type = cell_type(npc).ok_or_else(|| MeshError::InvalidFrame {
-        reason: format!("nodes_per_cell is {npc}; use 4, 10 or 3"),
-    })?;
+    let sizes = frame.checked_sizes()?;
+    let offsets = sizes
+        .iter()
+        .scan(0u64, |end, &n| {
+            *end += n as u64;
+            Some(*end)
+        })
+        .collect();
+    // Every size was checked to have a type.
+    let types = sizes.iter().filter_map(|&n| cell_type(n)).collect();
     let piece = UnstructuredGridPiece {
         points: IOBuffer::F64(frame.points.iter().flatten().copied().collect()),
         cells: Cells {
             cell_verts: VertexNumbers::XML {
                 connectivity: frame.cells.iter().map(|&i| i as u64).collect(),
-                offsets: (1..=n_cells).map(|c| (c * npc) as u64).collect(),
+                offsets,
             },
-            types: vec![cell_type; n_cells],
+            types,
         },
         data: Attributes {
             point: frame.point_fields.iter().map(attribute).collect(),
@@ -289,7 +342,7 @@ impl TetMesh {
             &VtuFrame {
                 points: &self.nodes,
                 cells: &self.elements,
-                nodes_per_cell: self.order.nodes_per_element(),
+                cell_nodes: CellNodes::Uniform(self.order.nodes_per_element()),
                 point_fields: vec![VtuField {
                     name: "is_surface",
                     components: 1,
@@ -336,7 +389,7 @@ impl MeshAssembly {
             &VtuFrame {
                 points: &self.nodes,
                 cells: &self.elements,
-                nodes_per_cell: self.nodes_per_element(),
+                cell_nodes: CellNodes::Uniform(self.nodes_per_element()),
                 point_fields: vec![VtuField {
                     name: "body_id",
                     components: 1,

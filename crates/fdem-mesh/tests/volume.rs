@@ -117,3 +117,72 @@ fn sphere_meshes_have_isotropic_inertia_that_converges_to_the_sphere() {
     }
     assert!(previous < 1e-6, "{previous}");
 }
+
+/// A sphere template stretched by axes `[a, b, c]` is an ellipsoid mesh: its volume is
+/// the sphere mesh's times `abc` (1e-13) and its second moment the sphere's stretched,
+/// `S_kk = abc axes_k^2 S_sphere,kk` (1e-12), the map being affine; the surface's control areas
+/// are those of the stretched triangles; the inertia converges with the level to the
+/// ellipsoid's `m (b^2 + c^2) r^2 / 5` (the mesh's own volume as reference, as for the
+/// sphere). Axes that are not finite and positive are refused.
+#[test]
+fn a_stretched_sphere_mesh_is_an_ellipsoid_with_its_closed_form_inertia() {
+    let axes = [1.0, 0.7, 0.5];
+    let mut previous = f64::INFINITY;
+    for level in 1..=4 {
+        for order in [ElementOrder::Linear, ElementOrder::Quadratic] {
+            let sphere = sphere_mesh(&SphereSpec {
+                level,
+                order,
+                diameter: 2.0,
+                sizing: Sizing::Inscribed,
+            })
+            .unwrap();
+            let ellipsoid = sphere.stretched(axes).unwrap();
+            ellipsoid.validate().unwrap();
+            let (s, e) = (sphere.volume_properties(), ellipsoid.volume_properties());
+            let abc = axes.iter().product::<f64>();
+            assert!(close(e.volume, abc * s.volume, s.volume, 1e-13));
+            for k in 0..3 {
+                let expected = abc * axes[k] * axes[k] * s.second_moment[k][k];
+                let m = e.second_moment[k][k];
+                assert!(
+                    close(m, expected, expected, 1e-12),
+                    "{k}: {m} vs {expected}"
+                );
+            }
+            let area: f64 = ellipsoid
+                .surface
+                .triangles
+                .iter()
+                .map(|&[a, b, c]| {
+                    let (p, q, r) = (ellipsoid.nodes[a], ellipsoid.nodes[b], ellipsoid.nodes[c]);
+                    let u = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+                    let v = [r[0] - p[0], r[1] - p[1], r[2] - p[2]];
+                    let n = [
+                        u[1] * v[2] - u[2] * v[1],
+                        u[2] * v[0] - u[0] * v[2],
+                        u[0] * v[1] - u[1] * v[0],
+                    ];
+                    0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+                })
+                .sum();
+            assert!(close(ellipsoid.surface.area(), area, area, 1e-12));
+            if order == ElementOrder::Linear {
+                // The ellipsoid of the mesh's own volume: semi-axes axes_k * r_V.
+                let r2 = (3.0 * e.volume / (4.0 * std::f64::consts::PI * abc)).powf(2.0 / 3.0);
+                let i = e.inertia(1.0);
+                let exact = e.volume * (axes[1] * axes[1] + axes[2] * axes[2]) * r2 / 5.0;
+                let error = (i[0][0] / exact - 1.0).abs();
+                eprintln!("level {level}: I_xx / (m (b^2 + c^2) r_V^2 / 5) - 1 = {error:.3e}");
+                assert!(error < previous, "level {level}: {error} after {previous}");
+                previous = error;
+            }
+        }
+    }
+    assert!(previous < 1e-6, "{previous}");
+    let sphere = sphere_mesh(&SphereSpec::paper(1.0)).unwrap();
+    for bad in [[0.0, 1.0, 1.0], [1.0, -0.5, 1.0], [1.0, 1.0, f64::NAN]] {
+        let e = sphere.stretched(bad).unwrap_err();
+        assert!(e.to_string().contains("axes"), "{e}");
+    }
+}

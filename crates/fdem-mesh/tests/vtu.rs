@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use fdem_mesh::{
-    ElementOrder, MeshAssembly, MeshError, Placement, Sizing, SphereSpec, VtuField, VtuFrame,
-    sphere_mesh, write_pvd, write_vtu,
+    CellNodes, ElementOrder, MeshAssembly, MeshError, Placement, Sizing, SphereSpec, VtuField,
+    VtuFrame, sphere_mesh, write_pvd, write_vtu,
 };
 use vtkio::Vtk;
 use vtkio::model::{
@@ -104,7 +104,7 @@ fn generic_frame_with_vector_field_and_triangles() {
     let frame = VtuFrame {
         points: &m.nodes,
         cells: &tris,
-        nodes_per_cell: 3,
+        cell_nodes: CellNodes::Uniform(3),
         point_fields: vec![VtuField {
             name: "velocity",
             components: 3,
@@ -133,6 +133,62 @@ fn generic_frame_with_vector_field_and_triangles() {
     no_temporary_files(dir.path());
 }
 
+/// A frame that mixes a linear tetrahedron, a quadratic one and a triangle is written with
+/// one type and offset per cell, read back as such.
+#[test]
+fn a_frame_of_mixed_cell_types_is_written_cell_by_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let q = sphere_mesh(&SphereSpec {
+        level: 0,
+        order: ElementOrder::Quadratic,
+        diameter: 1.0,
+        sizing: Sizing::Inscribed,
+    })
+    .unwrap();
+    let mut cells: Vec<usize> = q.elements[..10].to_vec();
+    cells.extend_from_slice(&q.elements[..4]);
+    cells.extend_from_slice(&q.surface.triangles[0]);
+    let sizes = [10, 4, 3];
+    let body = [0.0, 1.0, 2.0];
+    let frame = VtuFrame {
+        points: &q.nodes,
+        cells: &cells,
+        cell_nodes: CellNodes::PerCell(&sizes),
+        point_fields: vec![],
+        cell_fields: vec![VtuField {
+            name: "body",
+            components: 1,
+            values: &body,
+        }],
+    };
+    let path = dir.path().join("mixed.vtu");
+    write_vtu(&path, &frame).unwrap();
+    let p = read_piece(&path);
+    assert_eq!(
+        p.cells.types,
+        [
+            CellType::QuadraticTetra,
+            CellType::Tetra,
+            CellType::Triangle
+        ]
+    );
+    match p.cells.cell_verts {
+        VertexNumbers::XML {
+            connectivity,
+            offsets,
+        } => {
+            assert_eq!(offsets, [10, 14, 17]);
+            assert_eq!(
+                connectivity,
+                cells.iter().map(|&i| i as u64).collect::<Vec<_>>()
+            );
+        }
+        other => panic!("expected XML cells, got {other:?}"),
+    }
+    assert_eq!(f64_values(&p.data.cell, "body"), body);
+    no_temporary_files(dir.path());
+}
+
 #[test]
 fn inconsistent_frames_are_rejected_without_writing() {
     let dir = tempfile::tempdir().unwrap();
@@ -144,7 +200,7 @@ fn inconsistent_frames_are_rejected_without_writing() {
             VtuFrame {
                 points: &points,
                 cells: &[0, 1, 2, 3],
-                nodes_per_cell: 5,
+                cell_nodes: CellNodes::Uniform(5),
                 point_fields: vec![],
                 cell_fields: vec![],
             },
@@ -154,7 +210,7 @@ fn inconsistent_frames_are_rejected_without_writing() {
             VtuFrame {
                 points: &points,
                 cells: &[0, 1, 2],
-                nodes_per_cell: 4,
+                cell_nodes: CellNodes::Uniform(4),
                 point_fields: vec![],
                 cell_fields: vec![],
             },
@@ -164,7 +220,7 @@ fn inconsistent_frames_are_rejected_without_writing() {
             VtuFrame {
                 points: &points,
                 cells: &[0, 1, 2, 4],
-                nodes_per_cell: 4,
+                cell_nodes: CellNodes::Uniform(4),
                 point_fields: vec![],
                 cell_fields: vec![],
             },
@@ -174,7 +230,7 @@ fn inconsistent_frames_are_rejected_without_writing() {
             VtuFrame {
                 points: &points,
                 cells: &[0, 1, 2, 3],
-                nodes_per_cell: 4,
+                cell_nodes: CellNodes::Uniform(4),
                 point_fields: vec![VtuField {
                     name: "p",
                     components: 1,
@@ -188,7 +244,7 @@ fn inconsistent_frames_are_rejected_without_writing() {
             VtuFrame {
                 points: &points,
                 cells: &[0, 1, 2, 3],
-                nodes_per_cell: 4,
+                cell_nodes: CellNodes::Uniform(4),
                 point_fields: vec![],
                 cell_fields: vec![VtuField {
                     name: "a<b",
@@ -197,6 +253,36 @@ fn inconsistent_frames_are_rejected_without_writing() {
                 }],
             },
             "field name",
+        ),
+        (
+            VtuFrame {
+                points: &points,
+                cells: &[0, 1, 2, 3],
+                cell_nodes: CellNodes::PerCell(&[4, 5]),
+                point_fields: vec![],
+                cell_fields: vec![],
+            },
+            "cell 1 has 5 nodes",
+        ),
+        (
+            VtuFrame {
+                points: &points,
+                cells: &[0, 1, 2, 3],
+                cell_nodes: CellNodes::PerCell(&[4, 3]),
+                point_fields: vec![],
+                cell_fields: vec![],
+            },
+            "add up to 7",
+        ),
+        (
+            VtuFrame {
+                points: &points,
+                cells: &[0, 1, 2, 0, 1, 2, 4],
+                cell_nodes: CellNodes::PerCell(&[3, 4]),
+                point_fields: vec![],
+                cell_fields: vec![],
+            },
+            "cell 1 refers to point 4",
         ),
     ];
     for (frame, needle) in &cases {

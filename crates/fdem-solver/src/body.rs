@@ -1,5 +1,5 @@
-//! Bodies: contiguous node and element ranges of one kind, and their rigid-body
-//! summaries.
+//! Bodies: contiguous node and element ranges of one kind, their elements' connectivity,
+//! and their rigid-body summaries.
 
 use crate::NodeState;
 use fdem_core::geometry::cross;
@@ -26,6 +26,58 @@ pub enum BodyKind {
     /// ([`crate::RigidState`]), with the mass properties of the solid meshed shape. Its
     /// faces are contact faces like a deformable particle's.
     Rigid,
+}
+
+/// The tetrahedra of a model: each element's global node ids (4 for a linear element, 10
+/// for a quadratic one in VTK_QUADRATIC_TETRA order), numbered in body order. Each body
+/// has one element order; bodies of different orders may sit side by side.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Connectivity {
+    nodes: Vec<usize>,
+    /// End of each element's ids in `nodes`.
+    ends: Vec<usize>,
+}
+
+impl Connectivity {
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        self.ends.len()
+    }
+
+    /// True without elements.
+    pub fn is_empty(&self) -> bool {
+        self.ends.is_empty()
+    }
+
+    /// The global node ids of element `e`, or `None` past the last element.
+    pub fn element(&self, e: usize) -> Option<&[usize]> {
+        let end = *self.ends.get(e)?;
+        let start = if e == 0 { 0 } else { self.ends[e - 1] };
+        Some(&self.nodes[start..end])
+    }
+
+    /// The elements' node ids, element by element.
+    pub fn iter(&self) -> impl Iterator<Item = &[usize]> {
+        (0..self.len()).filter_map(|e| self.element(e))
+    }
+
+    /// All node ids, element after element.
+    pub fn flat(&self) -> &[usize] {
+        &self.nodes
+    }
+
+    /// The node count of each element (4 or 10).
+    pub fn node_counts(&self) -> Vec<usize> {
+        self.iter().map(<[usize]>::len).collect()
+    }
+
+    /// Appends elements of `nodes_per_element` body-local ids each, offset by `first`.
+    pub(crate) fn extend(&mut self, local: &[usize], nodes_per_element: usize, first: usize) {
+        for element in local.chunks_exact(nodes_per_element) {
+            self.nodes.extend(element.iter().map(|&i| i + first));
+            self.ends.push(self.nodes.len());
+        }
+    }
 }
 
 /// One body of the simulation: a contiguous node range (and element range for deformable

@@ -278,7 +278,7 @@ fn particle_fields(w: &mut Walker<'_, '_>, p: &mut ParticleSection) {
         velocity,
         angular_velocity,
         orientation,
-        mesh: _,  // level, order and sizing are not physical quantities
+        mesh: _,  // level, order, sizing and relative axes are not physical quantities
         model: _, // a choice of model, not a quantity
     } = p;
     w.scalar("diameter", "length", Role::Particle, diameter);
@@ -448,7 +448,7 @@ mesh = { level = 1, order = "linear", sizing = "inscribed" }
             toml::Value::Table(t) => {
                 for (k, x) in t {
                     if k == "mesh" {
-                        continue; // integers and names only
+                        continue; // integers, names and dimensionless axes
                     }
                     // Arrays of tables are named like `particle[0]` in key paths.
                     if let toml::Value::Array(items) = x

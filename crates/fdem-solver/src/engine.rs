@@ -4,7 +4,7 @@
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
 use crate::rigid::{RigidBodies, RigidState};
-use crate::{Body, BodyKind, BodyMotion, ContactForces, NodeState, SolverError};
+use crate::{Body, BodyKind, BodyMotion, Connectivity, ContactForces, NodeState, SolverError};
 use rayon::prelude::*;
 use std::any::Any;
 
@@ -85,8 +85,7 @@ pub(crate) struct Parts {
 pub(crate) struct Assembled {
     pub(crate) state: NodeState,
     pub(crate) bodies: Vec<Body>,
-    pub(crate) nodes_per_element: usize,
-    pub(crate) connectivity: Vec<usize>,
+    pub(crate) connectivity: Connectivity,
     pub(crate) elastic: ElasticForces,
     pub(crate) contact: Option<ContactForces>,
     pub(crate) rigid: RigidBodies,
@@ -108,8 +107,7 @@ pub(crate) struct Assembled {
 pub struct Simulation {
     state: NodeState,
     bodies: Vec<Body>,
-    nodes_per_element: usize,
-    connectivity: Vec<usize>,
+    connectivity: Connectivity,
     elastic: ElasticForces,
     contact: Option<ContactForces>,
     rigid: RigidBodies,
@@ -155,7 +153,6 @@ impl Simulation {
             wave_energy: total_mass * wave_speed * wave_speed,
             state: parts.state,
             bodies: parts.bodies,
-            nodes_per_element: parts.nodes_per_element,
             connectivity: parts.connectivity,
             elastic: parts.elastic,
             contact: parts.contact,
@@ -239,13 +236,8 @@ impl Simulation {
             .filter(|(_, b)| b.is_particle())
     }
 
-    /// Nodes per element (4 or 10; 0 without elements).
-    pub fn nodes_per_element(&self) -> usize {
-        self.nodes_per_element
-    }
-
-    /// Global element connectivity, [`Simulation::nodes_per_element`] node ids per element.
-    pub fn connectivity(&self) -> &[usize] {
+    /// The elements' global node ids, in body order (4 or 10 per element).
+    pub fn connectivity(&self) -> &Connectivity {
         &self.connectivity
     }
 

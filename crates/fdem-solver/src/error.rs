@@ -19,7 +19,7 @@ pub enum SolverError {
         /// What is wrong and how to fix it.
         message: String,
     },
-    /// A scene that parses but cannot be built (e.g. overlapping meshes of mixed order).
+    /// A scene that parses but cannot be built (e.g. a degenerate rigid shape).
     #[error("invalid scene: {0}")]
     InvalidScene(String),
     /// Mesh construction failed.

@@ -29,7 +29,7 @@ mod scene;
 mod state;
 pub mod toml_input;
 
-pub use body::{Body, BodyKind, BodyMotion};
+pub use body::{Body, BodyKind, BodyMotion, Connectivity};
 pub use contact::ContactForces;
 pub use dimensions::{Applied, Field, Role};
 pub use engine::{EnergyReport, Guard, NodesMut, Simulation, TimeStep};
@@ -47,5 +47,6 @@ pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count
 pub use scene::{
     ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
     MeshSection, ParticleModel, ParticleSection, Scene, SimulationSection, WallSection, WallType,
+    sphere_axes,
 };
 pub use state::NodeState;

@@ -12,7 +12,9 @@
 use crate::engine::{Assembled, Guard, Parts, Simulation, TimeStep};
 use crate::forces::{Constraint, ElasticForces, ElementInput, ForceContribution, StepBound};
 use crate::rigid::RigidPart;
-use crate::{Body, BodyKind, ContactForces, NodeState, RigidInertia, RigidState, SolverError};
+use crate::{
+    Body, BodyKind, Connectivity, ContactForces, NodeState, RigidInertia, RigidState, SolverError,
+};
 use fdem_contact::{ContactModel, ContactParams, ContactSurface, Wall};
 use fdem_elastic::Material;
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
@@ -140,8 +142,7 @@ pub struct ModelBuilder {
     masses: Vec<f64>,
     bodies: Vec<Body>,
     elements: Vec<ElementInput>,
-    nodes_per_element: usize,
-    connectivity: Vec<usize>,
+    connectivity: Connectivity,
     surface: ContactSurface,
     walls: Vec<Wall>,
     contact: Option<ContactSettings>,
@@ -168,8 +169,7 @@ impl ModelBuilder {
             masses: Vec::new(),
             bodies: Vec::new(),
             elements: Vec::new(),
-            nodes_per_element: 0,
-            connectivity: Vec::new(),
+            connectivity: Connectivity::default(),
             surface: ContactSurface::default(),
             walls: Vec::new(),
             contact: None,
@@ -188,11 +188,10 @@ impl ModelBuilder {
 
     /// Adds a deformable particle: `template` placed by `placement` (nodes, tetrahedra,
     /// outward surface with control areas), of `material`, moving rigidly with `motion`
-    /// about `placement.translation`.
+    /// about `placement.translation`. Particles of either element order may be mixed.
     ///
     /// # Errors
-    /// A template or placement that fdem-mesh refuses, or a template whose element order
-    /// differs from the bodies added before (one order per model).
+    /// A template or placement that fdem-mesh refuses.
     pub fn add_deformable(
         &mut self,
         template: &TetMesh,
@@ -203,18 +202,9 @@ impl ModelBuilder {
         let mut one = MeshAssembly::new();
         one.push_instance(template, placement)?;
         let npe = one.nodes_per_element();
-        if self.nodes_per_element != 0 && npe != self.nodes_per_element {
-            return Err(SolverError::InvalidScene(format!(
-                "body {} has {npe}-node elements but the bodies before it {}-node ones; \
-                 use one element order in a model",
-                self.bodies.len(),
-                self.nodes_per_element
-            )));
-        }
-        self.nodes_per_element = npe;
         let id = self.bodies.len();
         let first = self.reference.len();
-        let first_element = self.connectivity.len() / npe;
+        let first_element = self.connectivity.len();
         self.push_surface(
             id,
             first,
@@ -228,10 +218,9 @@ impl ModelBuilder {
         }
         self.reference.extend_from_slice(&one.nodes);
         self.masses.resize(self.reference.len(), 0.0);
-        self.connectivity
-            .extend(one.elements.iter().map(|&i| i + first));
+        self.connectivity.extend(&one.elements, npe, first);
         let nodes = first..self.reference.len();
-        let elements = first_element..first_element + one.n_elements();
+        let elements = first_element..self.connectivity.len();
         self.elements.push(ElementInput {
             body: id,
             nodes: nodes.clone(),
@@ -345,7 +334,7 @@ impl ModelBuilder {
         self.reference.extend_from_slice(&sheet.positions);
         self.velocities.resize(self.reference.len(), [0.0; 3]);
         self.masses.extend_from_slice(&sheet.masses);
-        let first_element = self.connectivity.len() / self.nodes_per_element.max(1);
+        let first_element = self.connectivity.len();
         self.bodies.push(Body {
             kind: BodyKind::Sheet,
             nodes: first..self.reference.len(),
@@ -422,7 +411,7 @@ impl ModelBuilder {
 
     /// Number of elements so far.
     pub fn n_elements(&self) -> usize {
-        self.connectivity.len() / self.nodes_per_element.max(1)
+        self.connectivity.len()
     }
 
     /// Number of bodies so far.
@@ -506,7 +495,6 @@ impl ModelBuilder {
         Simulation::new(Assembled {
             state,
             bodies: self.bodies,
-            nodes_per_element: self.nodes_per_element,
             connectivity: self.connectivity,
             elastic,
             contact,

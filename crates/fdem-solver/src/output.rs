@@ -5,7 +5,7 @@ use crate::SolverError;
 use crate::engine::{EnergyReport, Simulation};
 use fdem_core::fs::AtomicFile;
 use fdem_core::snapshot;
-use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
+use fdem_mesh::vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -114,9 +114,9 @@ impl VtkSeries {
     }
 
     /// Writes one frame (displacement, velocity, body id per node; stress and body per
-    /// element) and rewrites the collection so that it always lists complete frames. A
-    /// model without elements (rigid particles only) is written as the rigid particles'
-    /// surface triangles, with the body per triangle and no stress.
+    /// cell) and rewrites the collection so that it always lists complete frames. The
+    /// cells are the deformable particles' elements and the rigid particles' surface
+    /// triangles, whose stress is written as zero.
     pub fn frame(&mut self, sim: &Simulation) -> Result<(), SolverError> {
         let s = &sim.state();
         let displacement: Vec<f64> = s
@@ -130,11 +130,7 @@ impl VtkSeries {
         for (id, b) in sim.bodies().iter().enumerate() {
             node_body[b.nodes.clone()].fill(id as f64);
         }
-        let cells = if sim.nodes_per_element() == 0 {
-            rigid_triangles(sim)
-        } else {
-            element_cells(sim)?
-        };
+        let cells = frame_cells(sim)?;
         let mut cell_fields = Vec::with_capacity(2);
         if let Some(stress) = &cells.stress {
             cell_fields.push(VtuField {
@@ -152,7 +148,7 @@ impl VtkSeries {
         let frame = VtuFrame {
             points: &s.positions,
             cells: &cells.connectivity,
-            nodes_per_cell: cells.nodes_per_cell,
+            cell_nodes: CellNodes::PerCell(&cells.sizes),
             point_fields: vec![
                 VtuField {
                     name: "displacement",
@@ -182,57 +178,68 @@ impl VtkSeries {
 /// The cells of a frame.
 struct Cells {
     connectivity: Vec<usize>,
-    nodes_per_cell: usize,
+    /// Node count per cell (4 or 10 for elements, 3 for rigid surface triangles).
+    sizes: Vec<usize>,
     /// Body id per cell.
     body: Vec<f64>,
-    /// Cauchy stress per cell, 9 components row by row (elements only).
+    /// Cauchy stress per cell, 9 components row by row; `None` without elements.
     stress: Option<Vec<f64>>,
 }
 
-/// The elements as cells, with the body and the stress tensor of each (9 components row
-/// by row, as ParaView expects).
-fn element_cells(sim: &Simulation) -> Result<Cells, SolverError> {
-    let mut cell_body = Vec::with_capacity(sim.n_elements());
-    for (id, b) in sim.bodies().iter().enumerate() {
-        cell_body.extend(std::iter::repeat_n(id as f64, b.elements.len()));
-    }
-    let stress: Vec<f64> = sim
-        .elastic()
-        .stresses(&sim.state().positions)?
-        .iter()
-        .flat_map(|t| {
-            let [xx, yy, zz, yz, xz, xy] = *t;
-            [xx, xy, xz, xy, yy, yz, xz, yz, zz]
-        })
-        .collect();
-    Ok(Cells {
-        connectivity: sim.connectivity().to_vec(),
-        nodes_per_cell: sim.nodes_per_element(),
-        body: cell_body,
-        stress: Some(stress),
-    })
-}
-
-/// The surface triangles of the rigid bodies as cells, with the body of each.
-fn rigid_triangles(sim: &Simulation) -> Cells {
+/// The frame's cells: the elements of the deformable particles with the stress tensor of
+/// each (9 components row by row, as ParaView expects), then the surface triangles of the
+/// rigid particles, whose stress is written as zero (a rigid body has no strain). A model
+/// without elements has no stress field.
+fn frame_cells(sim: &Simulation) -> Result<Cells, SolverError> {
+    let elements = sim.connectivity();
     let mut cells = Cells {
-        connectivity: Vec::new(),
-        nodes_per_cell: 3,
-        body: Vec::new(),
+        connectivity: elements.flat().to_vec(),
+        sizes: elements.node_counts(),
+        body: Vec::with_capacity(elements.len()),
         stress: None,
     };
+    for (id, b) in sim.bodies().iter().enumerate() {
+        cells
+            .body
+            .extend(std::iter::repeat_n(id as f64, b.elements.len()));
+    }
+    if !elements.is_empty() {
+        let stress: Vec<f64> = sim
+            .elastic()
+            .stresses(&sim.state().positions)?
+            .iter()
+            .flat_map(|t| {
+                let [xx, yy, zz, yz, xz, xy] = *t;
+                [xx, xy, xz, xy, yy, yz, xz, yz, zz]
+            })
+            .collect();
+        cells.stress = Some(stress);
+    }
+    let triangles = push_rigid_triangles(sim, &mut cells);
+    if let Some(stress) = &mut cells.stress {
+        stress.resize(stress.len() + 9 * triangles, 0.0);
+    }
+    Ok(cells)
+}
+
+/// Appends the surface triangles of the rigid bodies to `cells`, with the body of each;
+/// returns how many.
+fn push_rigid_triangles(sim: &Simulation, cells: &mut Cells) -> usize {
     let Some(contact) = sim.contact() else {
-        return cells;
+        return 0;
     };
     let surface = contact.model().surface();
     let bodies = sim.bodies();
+    let mut count = 0;
     for (t, &b) in surface.triangles.iter().zip(&surface.triangle_body) {
         if bodies[b as usize].kind == crate::BodyKind::Rigid {
             cells.connectivity.extend_from_slice(t);
+            cells.sizes.push(3);
             cells.body.push(f64::from(b));
+            count += 1;
         }
     }
-    cells
+    count
 }
 
 /// Appends one row per wall to `walls.csv`: the force the particles exert on it (N).

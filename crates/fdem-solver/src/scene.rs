@@ -9,8 +9,8 @@ use crate::SolverError;
 use crate::engine::{Guard, Simulation, TimeStep};
 use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
 use crate::toml_input::{
-    check_fraction, check_poisson, check_positive, check_requirement, level, poisson, positive,
-    positive_opt, unit_quaternion_opt, vector, vector_opt,
+    axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
+    positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
 };
 use fdem_contact::ContactParams;
 use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
@@ -389,7 +389,7 @@ impl std::str::FromStr for ParticleModel {
     }
 }
 
-/// `mesh = { level = 1, order = "linear", sizing = "inscribed" }`.
+/// `mesh = { level = 1, order = "linear", sizing = "inscribed", axes = [1, 1, 1] }`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSection {
@@ -402,6 +402,15 @@ pub struct MeshSection {
     /// `"inscribed"` or `"volume_equivalent"`; default inscribed.
     #[serde(default)]
     pub sizing: Sizing,
+    /// Ellipsoid axes relative to the diameter, `[a, b, c]`: the sphere template
+    /// stretched by `a`, `b`, `c` along its own x, y, z ([`TetMesh::stretched`]), before
+    /// the particle's orientation turns it; default `[1, 1, 1]`, the sphere.
+    #[serde(
+        default = "sphere_axes",
+        deserialize_with = "axes",
+        skip_serializing_if = "is_sphere"
+    )]
+    pub axes: [f64; 3],
 }
 
 impl Default for MeshSection {
@@ -410,6 +419,37 @@ impl Default for MeshSection {
             level: default_level(),
             order: default_order(),
             sizing: Sizing::default(),
+            axes: sphere_axes(),
+        }
+    }
+}
+
+/// The axes of the sphere, `[1, 1, 1]`.
+pub fn sphere_axes() -> [f64; 3] {
+    [1.0; 3]
+}
+
+fn is_sphere(axes: &[f64; 3]) -> bool {
+    *axes == sphere_axes()
+}
+
+impl MeshSection {
+    /// The unit-diameter template mesh of this section: the icosphere, stretched into an
+    /// ellipsoid by `axes`.
+    ///
+    /// # Errors
+    /// What fdem-mesh refuses (a level out of range, axes that are not positive).
+    pub fn template(&self) -> Result<TetMesh, fdem_mesh::MeshError> {
+        let sphere = sphere_mesh(&SphereSpec {
+            level: self.level,
+            order: self.order,
+            diameter: 1.0,
+            sizing: self.sizing,
+        })?;
+        if is_sphere(&self.axes) {
+            Ok(sphere)
+        } else {
+            sphere.stretched(self.axes)
         }
     }
 }
@@ -476,25 +516,6 @@ impl Scene {
                 "particle".into(),
                 "the scene has no particles; add at least one [[particle]] table".into(),
             ));
-        }
-        // Rigid particles have no elements; the deformable ones share one order.
-        let deformable = self
-            .particles
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.model == ParticleModel::Deformable);
-        let mut first = None;
-        for (i, p) in deformable {
-            let order = p.mesh.unwrap_or_default().order;
-            let (j, reference) = *first.get_or_insert((i, order));
-            if order != reference {
-                return Err(fail(
-                    format!("particle[{i}].mesh.order"),
-                    format!(
-                        "all deformable particles of a scene must share one element order; particle[{j}] is {reference:?}, this one {order:?}"
-                    ),
-                ));
-            }
         }
         for (i, w) in self.walls.iter().enumerate() {
             let (needed, unused): (&[KeyPresence], &[KeyPresence]) = match w.kind {
@@ -637,7 +658,7 @@ impl Scene {
     /// kind, scaled, rotated and moved to each particle) and returns their ids.
     pub fn add_particles(&self, model: &mut ModelBuilder) -> Result<Vec<BodyId>, SolverError> {
         let material = self.elastic_material()?;
-        let mut templates: BTreeMap<(u32, bool, bool), TetMesh> = BTreeMap::new();
+        let mut templates: BTreeMap<(u32, bool, bool, [u64; 3]), TetMesh> = BTreeMap::new();
         let mut ids = Vec::with_capacity(self.particles.len());
         for p in &self.particles {
             let mesh = p.mesh.unwrap_or_default();
@@ -645,17 +666,11 @@ impl Scene {
                 mesh.level,
                 mesh.order == ElementOrder::Quadratic,
                 mesh.sizing == Sizing::VolumeEquivalent,
+                mesh.axes.map(f64::to_bits),
             );
             let template = match templates.entry(key) {
                 std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
-                std::collections::btree_map::Entry::Vacant(e) => {
-                    e.insert(sphere_mesh(&SphereSpec {
-                        level: mesh.level,
-                        order: mesh.order,
-                        diameter: 1.0,
-                        sizing: mesh.sizing,
-                    })?)
-                }
+                std::collections::btree_map::Entry::Vacant(e) => e.insert(mesh.template()?),
             };
             let placement = Placement {
                 scale: p.diameter,

@@ -142,6 +142,17 @@ pub fn check_vector(v: [f64; 3]) -> Result<[f64; 3], String> {
     }
 }
 
+/// Ellipsoid axes: three finite numbers greater than 0.
+pub fn check_axes(v: [f64; 3]) -> Result<[f64; 3], String> {
+    if v.iter().all(|x| x.is_finite() && *x > 0.0) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "every axis must be finite and greater than 0 (relative to the diameter; [1, 1, 1] is the sphere), got {v:?}"
+        ))
+    }
+}
+
 /// A unit quaternion `[w, x, y, z]` (norm 1 within 1e-6), returned normalised.
 pub fn check_unit_quaternion(q: [f64; 4]) -> Result<[f64; 4], String> {
     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -223,6 +234,11 @@ pub fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
 /// `deserialize_with` for an optional 3-vector whose components are all finite.
 pub fn vector_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
     vector(d).map(Some)
+}
+
+/// `deserialize_with` for ellipsoid axes (finite, > 0).
+pub fn axes<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    checked(d, check_axes)
 }
 
 /// `deserialize_with` for an optional unit quaternion `[w, x, y, z]`, normalised.

@@ -338,9 +338,10 @@ fn sheet(faces: Vec<[usize; 3]>) -> SheetBody {
     }
 }
 
-/// Inconsistent models are refused with one message that says what to change.
+/// Linear and quadratic particles sit side by side in one model: each keeps its own
+/// element order in the connectivity, body by body.
 #[test]
-fn inconsistent_models_are_refused_with_what_to_change() {
+fn linear_and_quadratic_particles_share_a_model() {
     let (linear, quadratic) = (
         template(ElementOrder::Linear),
         template(ElementOrder::Quadratic),
@@ -350,11 +351,29 @@ fn inconsistent_models_are_refused_with_what_to_change() {
     mixed
         .add_deformable(&linear, &at(0.0), &material(), still)
         .unwrap();
-    let e = mixed
+    mixed
         .add_deformable(&quadratic, &at(0.1), &material(), still)
-        .unwrap_err();
-    assert!(e.to_string().contains("one element order"), "{e}");
+        .unwrap();
+    let sim = mixed.build().unwrap();
+    let elements = sim.connectivity();
+    assert_eq!(elements.len(), linear.n_elements() + quadratic.n_elements());
+    let counts = elements.node_counts();
+    for (b, npe) in sim.bodies().iter().zip([4, 10]) {
+        assert!(counts[b.elements.clone()].iter().all(|&n| n == npe));
+        // Every element's nodes belong to its body.
+        for e in b.elements.clone() {
+            let nodes = elements.element(e).unwrap();
+            assert!(nodes.iter().all(|n| b.nodes.contains(n)), "{nodes:?}");
+        }
+    }
+    assert_eq!(elements.element(elements.len()), None);
+}
 
+/// Inconsistent models are refused with one message that says what to change.
+#[test]
+fn inconsistent_models_are_refused_with_what_to_change() {
+    let linear = template(ElementOrder::Linear);
+    let still = InitialMotion::default();
     let mut walls = ModelBuilder::new();
     walls
         .add_deformable(&linear, &at(0.0), &material(), still)

@@ -216,6 +216,71 @@ mod in_the_engine {
         super::norm([a[0] - b[0], a[1] - b[1], a[2] - b[2]])
     }
 
+    /// A meshed rigid ellipsoid (`mesh.axes = [1, 0.7, 0.5]`, level 2) from a scene,
+    /// spun about its intermediate axis with a small perturbation, flips over and back in
+    /// the engine (Dzhanibekov): its body-frame intermediate momentum changes sign again
+    /// and again, while the world angular momentum holds to 1e-10 relative and the
+    /// kinetic energy to 1e-6 (the splitting's bounded error). Its mass is the density
+    /// times the meshed ellipsoid's volume, abc times the sphere mesh's (1e-12), in both
+    /// models.
+    #[test]
+    fn a_rigid_ellipsoid_from_a_scene_flips_about_its_intermediate_axis() {
+        let scene = |axes: &str| {
+            fdem_solver::Scene::from_toml_str(
+                &format!(
+                    r#"
+[simulation]
+duration = 60.0
+dt = 1.0e-4
+{ROCK}
+[[particle]]
+diameter = 0.01
+center = [0.0, 0.0, 0.0]
+angular_velocity = [0.01, 10.0, 0.01]
+model = "rigid"
+mesh = {{ level = 2, axes = {axes} }}
+"#
+                ),
+                "ellipsoid",
+            )
+            .unwrap()
+        };
+        let mut sim = scene("[1.0, 0.7, 0.5]").build().unwrap();
+        let sphere = scene("[1.0, 1.0, 1.0]").build().unwrap();
+        let ratio = sim.body_motion(0).mass / sphere.body_motion(0).mass;
+        assert!((ratio - 0.35).abs() < 1e-12, "{ratio}");
+        // The deformable ellipsoid's lumped masses add up to the same mass.
+        let mut deformable = scene("[1.0, 0.7, 0.5]");
+        deformable.particles[0].model = fdem_solver::ParticleModel::Deformable;
+        let lumped = deformable.build().unwrap().body_motion(0).mass;
+        let m = sim.body_motion(0).mass;
+        assert!((lumped / m - 1.0).abs() < 1e-12, "{lumped} vs {m}");
+        let m0 = sim.body_motion(0);
+        let energy = |m: &fdem_solver::BodyMotion| {
+            0.5 * (0..3)
+                .map(|k| m.angular_velocity[k] * m.angular_momentum[k])
+                .sum::<f64>()
+        };
+        let (l0, e0) = (m0.angular_momentum, energy(&m0));
+        let intermediate = |sim: &fdem_solver::Simulation| sim.rigid_states()[0].body_momentum[1];
+        let (mut flips, mut sign) = (0, intermediate(&sim).signum());
+        let (mut worst_l, mut worst_e) = (0.0f64, 0.0f64);
+        for _ in 0..300_000 {
+            sim.advance().unwrap();
+            if intermediate(&sim).signum() != sign {
+                flips += 1;
+                sign = -sign;
+            }
+            let m = sim.body_motion(0);
+            worst_l = worst_l.max(dist(m.angular_momentum, l0) / super::norm(l0));
+            worst_e = worst_e.max((energy(&m) / e0 - 1.0).abs());
+        }
+        eprintln!("{flips} flips in 30 s; |dL|/|L| <= {worst_l:.2e}, |dE|/E <= {worst_e:.2e}");
+        assert!(flips >= 4, "{flips} flips");
+        assert!(worst_l < 1e-10, "{worst_l}");
+        assert!(worst_e < 1e-6, "{worst_e}");
+    }
+
     /// A free rigid particle spinning in the engine keeps its shape exactly (node
     /// distances to 1e-12 relative), its angular momentum (1e-11) and its energy (1e-6),
     /// and its nodes move with `v + omega x r`; `bodies.csv`'s summary comes from its own
@@ -338,11 +403,10 @@ mod in_the_engine {
         assert!((w - omega).abs() < 0.05 * omega, "omega {w} vs {omega}");
     }
 
-    /// A scene that mixes a rigid and a deformable particle (`model = "rigid"`): in a
-    /// frictional oblique collision the total linear momentum (the rigid body's `m V`
-    /// plus the deformable nodes' `sum m v`) is conserved to 1e-10 relative, since contact
-    /// forces come in equal and opposite pairs and the rigid body gathers its nodes'
-    /// forces whole.
+    /// A scene that mixes a rigid, a linear and a quadratic particle: in frictional
+    /// oblique collisions the total linear momentum (the rigid body's `m V` plus the
+    /// deformable nodes' `sum m v`) is conserved to 1e-10 relative, since contact forces
+    /// come in equal and opposite pairs and the rigid body gathers its nodes' forces whole.
     #[test]
     fn a_mixed_scene_conserves_linear_momentum_in_a_frictional_collision() {
         let scene = fdem_solver::Scene::from_toml_str(
@@ -361,6 +425,11 @@ model = "rigid"
 diameter = 0.01
 center = [0.01003, 0.003, 0.0]
 mesh = {{ level = 1, order = "quadratic" }}
+[[particle]]
+diameter = 0.01
+center = [0.0, -0.01003, 0.001]
+velocity = [0.0, 1.0, 0.0]
+mesh = {{ level = 1, order = "linear" }}
 "#
             ),
             "mixed",
@@ -369,19 +438,25 @@ mesh = {{ level = 1, order = "quadratic" }}
         let mut sim = scene.build().unwrap();
         assert_eq!(sim.bodies()[0].kind, BodyKind::Rigid);
         assert_eq!(sim.bodies()[1].kind, BodyKind::Deformable);
+        let counts = sim.connectivity().node_counts();
+        assert_eq!(counts[sim.bodies()[1].elements.clone()][0], 10);
+        assert_eq!(counts[sim.bodies()[2].elements.clone()][0], 4);
         let momentum = |sim: &fdem_solver::Simulation| {
-            let (a, b) = (sim.body_motion(0), sim.body_motion(1));
-            [0, 1, 2].map(|k| a.mass * a.velocity[k] + b.mass * b.velocity[k])
+            let m: Vec<_> = (0..3).map(|b| sim.body_motion(b)).collect();
+            [0, 1, 2].map(|k| m.iter().map(|m| m.mass * m.velocity[k]).sum::<f64>())
         };
         let p0 = momentum(&sim);
+        // Until both deformable particles have been hit (the linear one deflected).
+        let deflected = |sim: &fdem_solver::Simulation| sim.body_motion(2).velocity[0].abs() > 0.01;
         let (mut touched, mut after) = (false, 0);
-        while after < 2000 && sim.step() < 200_000 {
+        while (after < 2000 || !deflected(&sim)) && sim.step() < 200_000 {
             sim.advance().unwrap();
             let c = sim.contact().unwrap().model().node_contacts();
             touched |= c.iter().any(|c| c.tangential_force != [0.0; 3]);
             after += usize::from(touched);
         }
         assert!(touched, "no frictional contact by {:e} s", sim.time());
+        assert!(deflected(&sim), "the linear particle was not hit");
         let p = momentum(&sim);
         let scale = super::norm(p0);
         for k in 0..3 {

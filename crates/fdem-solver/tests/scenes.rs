@@ -96,6 +96,12 @@ fn each_kind_of_mistake_names_its_key_and_line() {
         ),
         ("level = 1", "level = 9", "particle[0].mesh.level", 16),
         (
+            "level = 1",
+            "level = 1, axes = [1.0, 0.0, 0.5]",
+            "particle[0].mesh.axes",
+            16,
+        ),
+        (
             "order = \"linear\"",
             "order = \"cubic\"",
             "particle[0].mesh.order",
@@ -332,4 +338,69 @@ model = "rigid"
     assert!(vtu.contains("NumberOfPoints=\"84\""), "{}", &vtu[..300]);
     assert!(vtu.contains("NumberOfCells=\"160\""), "{}", &vtu[..300]);
     assert!(!vtu.contains("Name=\"stress\""));
+}
+
+/// A scene that mixes a linear, a quadratic and a rigid particle writes one frame of
+/// mixed cells: the two particles' tetrahedra (VTK_TETRA, VTK_QUADRATIC_TETRA) and the
+/// rigid particle's surface triangles, with a stress per cell (zero on the triangles).
+#[test]
+fn a_mixed_scene_is_written_as_tetrahedra_of_both_orders_and_rigid_triangles() {
+    let text = r#"
+[simulation]
+duration = 1.0e-5
+dt_safety = 0.4
+output_interval = 1.0e-5
+[material]
+density = 2650.0
+youngs_modulus = 40.0e9
+poisson_ratio = 0.2
+[[particle]]
+diameter = 0.01
+center = [0.0, 0.0, 0.0]
+mesh = { level = 1, order = "linear" }
+[[particle]]
+diameter = 0.01
+center = [0.0102, 0.0, 0.0]
+mesh = { level = 1, order = "quadratic" }
+[[particle]]
+diameter = 0.01
+center = [0.0, 0.0102, 0.0]
+model = "rigid"
+"#;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::from_toml_str(text, "mixed.toml").unwrap();
+    let options = RunOptions {
+        out_dir: dir.path().to_path_buf(),
+        vtk: true,
+        contacts: false,
+    };
+    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    let vtk = vtkio::Vtk::import(dir.path().join("frames/frame_000000.vtu")).unwrap();
+    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid");
+    };
+    let Some(vtkio::model::Piece::Inline(piece)) = pieces.into_iter().next() else {
+        panic!("no inline piece");
+    };
+    use vtkio::model::CellType;
+    let types = &piece.cells.types;
+    // Level 1: 80 tetrahedra per deformable particle, 80 surface triangles per rigid one.
+    let count = |t: CellType| types.iter().filter(|&&c| c == t).count();
+    assert_eq!(count(CellType::Tetra), 80);
+    assert_eq!(count(CellType::QuadraticTetra), 80);
+    assert_eq!(count(CellType::Triangle), 80);
+    // 43 linear and 205 quadratic element nodes, and the rigid particle's 42 surface nodes.
+    assert_eq!(piece.num_points(), 43 + 205 + 42);
+    let stress = piece
+        .data
+        .cell
+        .iter()
+        .find(|a| a.name() == "stress")
+        .expect("a stress field");
+    let vtkio::model::Attribute::DataArray(array) = stress else {
+        panic!("stress is not a data array");
+    };
+    let values: Vec<f64> = array.data.clone().into_vec().unwrap();
+    assert_eq!(values.len(), 9 * 240);
+    assert!(values[9 * 160..].iter().all(|&v| v == 0.0));
 }

@@ -245,6 +245,7 @@ pub fn particle_sections(
         level: spec.mesh.level,
         order: spec.mesh.order,
         sizing: spec.mesh.sizing,
+        axes: fdem_solver::sphere_axes(),
     };
     particles
         .iter()
@@ -573,11 +574,10 @@ fn real_solid_fraction(sim: &Simulation, volume: f64, density: f64) -> f64 {
         .filter(|(_, b)| b.kind == fdem_solver::BodyKind::Rigid)
         .map(|(id, _)| sim.body_motion(id).mass / density)
         .sum();
-    let npe = sim.nodes_per_element();
     let x = &sim.state().positions;
     let solid: f64 = sim
         .connectivity()
-        .chunks_exact(npe.max(1))
+        .iter()
         .map(|e| {
             let (a, b, c, d) = (x[e[0]], x[e[1]], x[e[2]], x[e[3]]);
             let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];

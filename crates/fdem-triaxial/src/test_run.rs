@@ -10,7 +10,7 @@ use crate::measure::{
 };
 use crate::plot::{CurvePlot, CurveSeries, plot_curves};
 use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
-use fdem_mesh::vtu::{VtuField, VtuFrame, write_pvd, write_vtu};
+use fdem_mesh::vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};
 use fdem_solver::output::{BoundaryBody, VtkSeries, contact_snapshot_text, write_atomically};
 use fdem_solver::{EnergyReport, Simulation};
 use serde::Serialize;
@@ -422,7 +422,7 @@ impl Run<'_> {
         let frame = VtuFrame {
             points: &points,
             cells: &cells,
-            nodes_per_cell: 3,
+            cell_nodes: CellNodes::Uniform(3),
             point_fields: vec![],
             cell_fields: vec![VtuField {
                 name: "part",
