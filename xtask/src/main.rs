@@ -14,7 +14,7 @@ use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
 use fdem_scaling::ScaleLaw;
 use std::process::ExitCode;
 
-const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --model deformable|rigid, --order linear|quadratic,\n             --level N, --strain S, --vtk, --threads N, --fresh, --out DIR, --config FILE);\n             a preset with --model rigid gets linear surfaces unless --order is given\n  preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
+const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --model deformable|rigid|auto, --order linear|quadratic,\n             --level N, --strain S, --vtk, --threads N, --fresh, --out DIR, --config FILE);\n             a preset with --model rigid or auto gets linear surfaces unless --order is given\n  preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -101,12 +101,11 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
     let has_order = given("--order");
     let has_out = given("--out");
     let mut args: Vec<String> = rest.to_vec();
-    // Rigid particles of a preset get the linear surface (42 contact nodes at level 1)
-    // unless --order says otherwise.
-    let rigid = rest
-        .windows(2)
-        .any(|w| w[0] == "--model" && w[1] == "rigid")
-        || given("--model=rigid");
+    // Rigid (or auto) particles of a preset get the linear surface (42 contact nodes at
+    // level 1) unless --order says otherwise.
+    let rigid = ["rigid", "auto"].iter().any(|m| {
+        rest.windows(2).any(|w| w[0] == "--model" && w[1] == *m) || given(&format!("--model={m}"))
+    });
     let preset = !(given("--config") || given("--specimen") || quick);
     if !chooses_specimen {
         args.extend(["--test", "E4s"].map(String::from));

@@ -154,6 +154,7 @@ impl Scene {
             particles,
             contact,
             walls,
+            auto,
         } = self;
         let mut w = Walker::new(visit, "");
         w.prefix = "simulation.".into();
@@ -171,6 +172,17 @@ impl Scene {
         for (i, wall) in walls.iter_mut().enumerate() {
             w.prefix = format!("wall[{i}].");
             wall_fields(&mut w, wall);
+        }
+        if let Some(a) = auto.as_mut() {
+            w.prefix = "auto.".into();
+            // At a fixed stress the contact force grows with the particle's area.
+            w.scalar(
+                "contact_force",
+                "force",
+                Role::Particle,
+                &mut a.contact_force,
+            );
+            w.scalar("threshold", "ratio", Role::Domain, &mut a.threshold);
         }
     }
 

@@ -15,6 +15,7 @@
 //! count: runs are bit-for-bit repeatable.
 #![warn(missing_docs)]
 
+mod auto_model;
 mod body;
 mod contact;
 mod dimensions;
@@ -29,6 +30,10 @@ mod scene;
 mod state;
 pub mod toml_input;
 
+pub use auto_model::{
+    DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, PatchRegime, deflection_estimate,
+    mean_contact_force,
+};
 pub use body::{Body, BodyKind, BodyMotion, Connectivity};
 pub use contact::ContactForces;
 pub use dimensions::{Applied, Field, Role};
@@ -45,8 +50,8 @@ pub use model::{
 pub use rigid::{RigidInertia, RigidState};
 pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
 pub use scene::{
-    ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS, MaterialSection,
-    MeshSection, ParticleModel, ParticleSection, Scene, SimulationSection, WallSection, WallType,
-    sphere_axes,
+    AutoSection, ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS,
+    MaterialSection, MeshSection, ParticleModel, ParticleSection, Scene, SimulationSection,
+    WallSection, WallType, sphere_axes,
 };
 pub use state::NodeState;

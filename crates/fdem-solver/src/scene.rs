@@ -12,6 +12,7 @@ use crate::toml_input::{
     axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
     positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
 };
+use crate::{DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, deflection_estimate};
 use fdem_contact::ContactParams;
 use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
@@ -35,6 +36,27 @@ pub struct Scene {
     /// `[[wall]]`: rigid walls.
     #[serde(rename = "wall", default, skip_serializing_if = "Vec::is_empty")]
     pub walls: Vec<WallSection>,
+    /// `[auto]`: what the `auto` particle model decides from; needed when a particle's
+    /// model is `"auto"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto: Option<AutoSection>,
+}
+
+/// `[auto]`: the inputs of the `auto` particle model (docs/MODEL.md section 12).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AutoSection {
+    /// Expected normal contact force on a particle (N), > 0.
+    #[serde(deserialize_with = "positive")]
+    pub contact_force: f64,
+    /// Rigid where the estimated deflection is below this fraction of the overlap;
+    /// default [`DEFAULT_AUTO_THRESHOLD`].
+    #[serde(default = "default_auto_threshold", deserialize_with = "positive")]
+    pub threshold: f64,
+}
+
+fn default_auto_threshold() -> f64 {
+    DEFAULT_AUTO_THRESHOLD
 }
 
 /// `[contact]`: penalty contact (docs/MODEL.md section 2, paper eqs 1-3).
@@ -342,8 +364,9 @@ pub struct ParticleSection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<MeshSection>,
     /// How much physics the particle gets: `"deformable"` (default; a tetrahedral mesh
-    /// that deforms elastically) or `"rigid"` (the mesh's surface moving as one rigid
-    /// body with the solid mesh's mass properties; docs/MODEL.md section 12).
+    /// that deforms elastically), `"rigid"` (the mesh's surface moving as one rigid
+    /// body with the solid mesh's mass properties; docs/MODEL.md section 12) or `"auto"`
+    /// (one of the two, chosen from `[auto]`, [`Scene::resolved_models`]).
     #[serde(default, skip_serializing_if = "ParticleModel::is_default")]
     pub model: ParticleModel,
 }
@@ -357,6 +380,9 @@ pub enum ParticleModel {
     Deformable,
     /// One rigid body.
     Rigid,
+    /// Rigid or deformable, chosen from the particle's estimated deflection
+    /// ([`crate::deflection_estimate`]); resolved before a model is built.
+    Auto,
 }
 
 impl ParticleModel {
@@ -370,6 +396,7 @@ impl ParticleModel {
         match self {
             ParticleModel::Deformable => "deformable",
             ParticleModel::Rigid => "rigid",
+            ParticleModel::Auto => "auto",
         }
     }
 }
@@ -377,13 +404,14 @@ impl ParticleModel {
 impl std::str::FromStr for ParticleModel {
     type Err = String;
 
-    /// `"deformable"` or `"rigid"`.
+    /// `"deformable"`, `"rigid"` or `"auto"`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "deformable" => Ok(ParticleModel::Deformable),
             "rigid" => Ok(ParticleModel::Rigid),
+            "auto" => Ok(ParticleModel::Auto),
             _ => Err(format!(
-                "unknown particle model '{s}'; use \"deformable\" or \"rigid\""
+                "unknown particle model '{s}'; use \"deformable\", \"rigid\" or \"auto\""
             )),
         }
     }
@@ -515,6 +543,20 @@ impl Scene {
             return Err(fail(
                 "particle".into(),
                 "the scene has no particles; add at least one [[particle]] table".into(),
+            ));
+        }
+        if self.auto.is_none()
+            && let Some(i) = self
+                .particles
+                .iter()
+                .position(|p| p.model == ParticleModel::Auto)
+        {
+            return Err(fail(
+                "auto".into(),
+                format!(
+                    "particle[{i}] has model = \"auto\", which decides from the expected contact force; \
+                     add `[auto]` with `contact_force = ...` (N), or give the particle \"rigid\" or \"deformable\""
+                ),
             ));
         }
         for (i, w) in self.walls.iter().enumerate() {
@@ -681,14 +723,65 @@ impl Scene {
                 velocity: p.velocity.unwrap_or([0.0; 3]),
                 angular_velocity: p.angular_velocity.unwrap_or([0.0; 3]),
             };
-            ids.push(match p.model {
-                ParticleModel::Deformable => {
-                    model.add_deformable(template, &placement, &material, motion)?
-                }
+            let resolved = match p.model {
+                ParticleModel::Auto => self.auto_estimate(p.diameter, template)?.model,
+                m => m,
+            };
+            ids.push(match resolved {
                 ParticleModel::Rigid => model.add_rigid(template, &placement, &material, motion)?,
+                _ => model.add_deformable(template, &placement, &material, motion)?,
             });
         }
         Ok(ids)
+    }
+
+    /// The `auto` decision for a particle of `diameter` meshed by the unit-diameter
+    /// `template`: its mean surface-node control area, the scene's material and penalty,
+    /// and `[auto]`'s force and threshold.
+    fn auto_estimate(
+        &self,
+        diameter: f64,
+        template: &TetMesh,
+    ) -> Result<DeflectionEstimate, SolverError> {
+        let auto = self.auto.ok_or_else(|| {
+            SolverError::InvalidScene(
+                "a particle has model = \"auto\" but the scene has no [auto] table".into(),
+            )
+        })?;
+        let surface = &template.surface;
+        let node_area = diameter * diameter * surface.area() / surface.nodes.len().max(1) as f64;
+        Ok(deflection_estimate(
+            DeflectionInputs {
+                diameter,
+                youngs_modulus: self.material.youngs_modulus,
+                poisson_ratio: self.material.poisson_ratio,
+                normal_penalty: self.contact_params().normal_penalty,
+                node_area,
+                contact_force: auto.contact_force,
+            },
+            auto.threshold,
+        ))
+    }
+
+    /// The model of every particle, `auto` resolved, with the estimate behind each `auto`
+    /// decision.
+    ///
+    /// # Errors
+    /// A mesh that cannot be built.
+    pub fn resolved_models(
+        &self,
+    ) -> Result<Vec<(ParticleModel, Option<DeflectionEstimate>)>, SolverError> {
+        self.particles
+            .iter()
+            .map(|p| match p.model {
+                ParticleModel::Auto => {
+                    let template = p.mesh.unwrap_or_default().template()?;
+                    let e = self.auto_estimate(p.diameter, &template)?;
+                    Ok((e.model, Some(e)))
+                }
+                m => Ok((m, None)),
+            })
+            .collect()
     }
 
     /// The scene as a model: particles, then (with contact on and something to touch)

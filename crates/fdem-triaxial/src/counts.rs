@@ -4,7 +4,14 @@
 use crate::spec::DEFAULT_SOLID_FRACTION;
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_mesh::{SphereSpec, sphere_mesh};
-use fdem_solver::ParticleModel;
+use fdem_solver::{
+    DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, ParticleModel,
+    deflection_estimate, mean_contact_force,
+};
+
+/// Contacts per particle assumed by the `auto` model's expected contact force: the low
+/// end of a packing's coordination, so that the force is not underestimated.
+pub const AUTO_COORDINATION: f64 = 4.0;
 use serde::{Deserialize, Serialize};
 
 /// Nominal sphere volume `pi d^3 / 6` (m^3).
@@ -21,6 +28,15 @@ pub struct ClassCount {
     pub mass_fraction: f64,
     /// Number of particles.
     pub particles: u64,
+    /// The class's particle model (`auto` resolved: deformable or rigid).
+    pub model: ParticleModel,
+    /// Tetrahedra per particle (0 for a rigid one).
+    pub elements_per_particle: u64,
+    /// Simulated nodes per particle (a rigid one's surface nodes).
+    pub nodes_per_particle: u64,
+    /// The estimate behind an `auto` decision.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto: Option<DeflectionEstimate>,
 }
 
 /// Particle, element and node counts of a specimen.
@@ -32,10 +48,8 @@ pub struct Counts {
     pub elements: u64,
     /// Total nodes.
     pub nodes: u64,
-    /// Tetrahedra per particle.
-    pub elements_per_particle: u64,
-    /// Nodes per particle.
-    pub nodes_per_particle: u64,
+    /// Rigid particles.
+    pub rigid_particles: u64,
     /// Per size class, in the order of the gradation.
     pub classes: Vec<ClassCount>,
     /// Nominal solid volume `sum n_i pi d_i^3 / 6` (m^3).
@@ -45,6 +59,29 @@ pub struct Counts {
 }
 
 impl Counts {
+    /// One line per size class: its model and what it simulates per particle, and for
+    /// an `auto` decision the estimate behind it.
+    pub fn model_report(&self) -> Vec<String> {
+        self.classes
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let mut line = format!(
+                    "class {i} (d = {:e} m, {} particles): {}, {} elements and {} nodes per particle",
+                    c.diameter,
+                    c.particles,
+                    c.model.name(),
+                    c.elements_per_particle,
+                    c.nodes_per_particle
+                );
+                if let Some(e) = &c.auto {
+                    line.push_str(&format!("; auto: {e}"));
+                }
+                line
+            })
+            .collect()
+    }
+
     /// Every particle as (simulated diameter, size class), class by class: the list
     /// [`crate::place_spheres`] takes.
     pub fn diameters(&self) -> Vec<(f64, usize)> {
@@ -166,37 +203,86 @@ impl SpecimenSpec {
             sizing: self.mesh.sizing,
         })
         .map_err(mesh_error)?;
-        // A rigid particle simulates no elements and only its surface nodes.
-        let (epp, npp) = match self.model {
-            ParticleModel::Deformable => (template.n_elements() as u64, template.n_nodes() as u64),
-            ParticleModel::Rigid => (0, surface_node_count(&template).map_err(mesh_error)? as u64),
-        };
         let h = self.coarse_graining;
-        let classes: Vec<ClassCount> = self
-            .gradation
+        let diameters: Vec<f64> = self.gradation.iter().map(|c| c.size * h).collect();
+        let solid_volume: f64 = diameters
             .iter()
             .zip(&per_class)
-            .map(|(c, &n)| ClassCount {
-                diameter: c.size * h,
+            .map(|(&d, &n)| n as f64 * sphere_volume(d))
+            .sum();
+        let solid_fraction = solid_volume / self.inner_volume();
+        // A rigid particle simulates no elements and only its surface nodes.
+        let deformable = (template.n_elements() as u64, template.n_nodes() as u64);
+        let rigid = (0, surface_node_count(&template).map_err(mesh_error)? as u64);
+        let mut classes = Vec::with_capacity(per_class.len());
+        for ((c, &n), &d) in self.gradation.iter().zip(&per_class).zip(&diameters) {
+            let auto = match self.model {
+                ParticleModel::Auto => Some(self.auto_estimate(d, solid_fraction, &template)?),
+                _ => None,
+            };
+            let model = auto.map_or(self.model, |e| e.model);
+            let (epp, npp) = if model == ParticleModel::Rigid {
+                rigid
+            } else {
+                deformable
+            };
+            classes.push(ClassCount {
+                diameter: d,
                 mass_fraction: c.mass_fraction,
                 particles: n,
-            })
-            .collect();
+                model,
+                elements_per_particle: epp,
+                nodes_per_particle: npp,
+                auto,
+            });
+        }
         let particles: u64 = per_class.iter().sum();
-        let solid_volume: f64 = classes
+        let total = |f: fn(&ClassCount) -> u64| classes.iter().map(|c| c.particles * f(c)).sum();
+        let (elements, nodes) = (
+            total(|c| c.elements_per_particle),
+            total(|c| c.nodes_per_particle),
+        );
+        let rigid_particles = classes
             .iter()
-            .map(|c| c.particles as f64 * sphere_volume(c.diameter))
+            .filter(|c| c.model == ParticleModel::Rigid)
+            .map(|c| c.particles)
             .sum();
         Ok(Counts {
             particles,
-            elements: particles * epp,
-            nodes: particles * npp,
-            elements_per_particle: epp,
-            nodes_per_particle: npp,
+            elements,
+            nodes,
+            rigid_particles,
             classes,
             solid_volume,
-            solid_fraction: solid_volume / self.inner_volume(),
+            solid_fraction,
         })
+    }
+
+    /// The `auto` decision for the particles of simulated diameter `d` in a packing of
+    /// nominal solid fraction `phi` under the confining pressure: the expected contact
+    /// force from Love-Weber with [`AUTO_COORDINATION`] contacts per particle, the
+    /// simulated material and penalty, the mesh's mean surface-node control area.
+    fn auto_estimate(
+        &self,
+        d: f64,
+        phi: f64,
+        template: &fdem_mesh::TetMesh,
+    ) -> Result<DeflectionEstimate, TriaxialError> {
+        let simulated = self.simulated()?;
+        let surface = &template.surface;
+        let node_area = d * d * surface.area() / surface.nodes.len().max(1) as f64;
+        let force = mean_contact_force(self.confining_pressure, d, phi, AUTO_COORDINATION);
+        Ok(deflection_estimate(
+            DeflectionInputs {
+                diameter: d,
+                youngs_modulus: simulated.material.youngs_modulus,
+                poisson_ratio: simulated.material.poisson_ratio,
+                normal_penalty: simulated.contact.normal_penalty,
+                node_area,
+                contact_force: force,
+            },
+            self.auto_threshold.unwrap_or(DEFAULT_AUTO_THRESHOLD),
+        ))
     }
 }
 

@@ -205,10 +205,7 @@ impl PreparedSpecimen {
                 ),
             ));
         }
-        let rigid_expected = match header.specimen.model {
-            fdem_solver::ParticleModel::Rigid => n_particles,
-            fdem_solver::ParticleModel::Deformable => 0,
-        };
+        let rigid_expected = counts.rigid_particles;
         if layout.rigid != rigid_expected {
             return Err(TriaxialError::file(
                 path,

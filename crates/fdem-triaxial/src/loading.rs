@@ -336,9 +336,10 @@ fn particle_scene(prepared: &PreparedSpecimen) -> Result<Scene, TriaxialError> {
             energy_tolerance: None,
         },
         material: simulated.material.clone(),
-        particles: prepared.particle_sections(),
+        particles: prepared.particle_sections()?,
         contact: Some(simulated.contact.clone()),
         walls: Vec::new(),
+        auto: None,
     })
 }
 
@@ -451,7 +452,7 @@ impl TestModel {
         model.set_time_step(match dt {
             Some(dt) => TimeStep::Fixed(dt),
             None => TimeStep::Automatic {
-                safety: spec.test.dt_safety_for(spec.model),
+                safety: spec.test.dt_safety_for(spec.counts()?.rigid_particles > 0),
             },
         });
         model.set_guard(Guard {

@@ -13,8 +13,8 @@ use crate::placement::{Column, PlacedParticle, place_spheres};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
 use fdem_solver::{
-    ContactSection, MeshSection, ParticleSection, RigidState, Scene, Simulation, SimulationSection,
-    WallSection, WallType,
+    ContactSection, MeshSection, ParticleModel, ParticleSection, RigidState, Scene, Simulation,
+    SimulationSection, WallSection, WallType,
 };
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -236,18 +236,20 @@ fn solver(phase: &'static str) -> impl Fn(fdem_solver::SolverError) -> TriaxialE
     move |cause| TriaxialError::Solver { phase, cause }
 }
 
-/// The `[[particle]]` tables of a placement with the specimen's mesh.
+/// The `[[particle]]` tables of a placement with the specimen's mesh and each size
+/// class's model (`auto` resolved, [`crate::Counts`]).
 pub fn particle_sections(
     spec: &SpecimenSpec,
     particles: &[PlacedParticle],
-) -> Vec<ParticleSection> {
+) -> Result<Vec<ParticleSection>, TriaxialError> {
+    let models: Vec<ParticleModel> = spec.counts()?.classes.iter().map(|c| c.model).collect();
     let mesh = MeshSection {
         level: spec.mesh.level,
         order: spec.mesh.order,
         sizing: spec.mesh.sizing,
         axes: fdem_solver::sphere_axes(),
     };
-    particles
+    Ok(particles
         .iter()
         .map(|p| ParticleSection {
             diameter: p.diameter,
@@ -256,9 +258,9 @@ pub fn particle_sections(
             angular_velocity: None,
             orientation: Some(p.orientation),
             mesh: Some(mesh),
-            model: spec.model,
+            model: models.get(p.class).copied().unwrap_or(spec.model),
         })
-        .collect()
+        .collect())
 }
 
 /// The preparation walls: the cylinder, then the bottom and top platens at `bottom` and
@@ -316,6 +318,7 @@ fn scene(
         particles,
         contact: Some(contact),
         walls,
+        auto: None,
     })
 }
 
@@ -340,7 +343,7 @@ pub fn specimen_time_step(spec: &SpecimenSpec) -> Result<(f64, f64, String), Tri
         .collect();
     let radius = 3.0 * d_max * (sizes.len() as f64 + 1.0);
     let walls = preparation_walls(radius, -radius, radius, 0.0);
-    let s = scene(spec, particle_sections(spec, &probe), walls, None)?;
+    let s = scene(spec, particle_sections(spec, &probe)?, walls, None)?;
     let sim = s.build().map_err(solver("time step"))?;
     Ok((sim.dt(), sim.bound().dt, sim.bound().source.clone()))
 }
@@ -746,7 +749,7 @@ pub fn prepare(
         compact_steps = ((wanted / (prep.platen_speed * dt)).ceil() as u64).max(1);
         prep.platen_speed * dt * compact_steps as f64
     })?;
-    let sections = particle_sections(spec, &particles);
+    let sections = particle_sections(spec, &particles)?;
     let compacted = compact(
         spec,
         &counts,
@@ -930,7 +933,10 @@ fn settle(
 impl PreparedSpecimen {
     /// The `[[particle]]` tables of the specimen (reference placements and mesh), for a
     /// caller that builds its own scene around the specimen.
-    pub fn particle_sections(&self) -> Vec<ParticleSection> {
+    ///
+    /// # Errors
+    /// A specimen definition that no longer gives counts (it did when prepared).
+    pub fn particle_sections(&self) -> Result<Vec<ParticleSection>, TriaxialError> {
         particle_sections(&self.spec, &self.particles)
     }
 
@@ -940,7 +946,7 @@ impl PreparedSpecimen {
     /// its simulation is [`PreparedSpecimen::simulation`].
     pub fn scene(&self) -> Result<Scene, TriaxialError> {
         let walls = preparation_walls(self.spec.inner_radius(), 0.0, self.spec.height, 0.0);
-        scene(&self.spec, self.particle_sections(), walls, Some(self.dt))
+        scene(&self.spec, self.particle_sections()?, walls, Some(self.dt))
     }
 
     /// Builds the prepared configuration ([`PreparedSpecimen::scene`]) and restores the

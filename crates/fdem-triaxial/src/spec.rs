@@ -204,11 +204,21 @@ pub struct SpecimenSpec {
     /// `[mesh]`: default level 1 quadratic inscribed (the paper's particle).
     #[serde(default)]
     pub mesh: SpecimenMesh,
-    /// Model of every particle: `"deformable"` (default, the paper's FDEM) or `"rigid"`
+    /// Model of the particles: `"deformable"` (default, the paper's FDEM), `"rigid"`
     /// (the mesh's surface moving as one rigid body with the solid mesh's mass
-    /// properties; docs/MODEL.md section 12).
+    /// properties; docs/MODEL.md section 12) or `"auto"` (per size class, rigid where the
+    /// estimated deflection is below `auto_threshold` of the overlap; [`Counts`]).
+    ///
+    /// [`Counts`]: crate::Counts
     #[serde(default, skip_serializing_if = "ParticleModel::is_default")]
     pub model: ParticleModel,
+    /// Threshold of the `auto` model, > 0; default [`fdem_solver::DEFAULT_AUTO_THRESHOLD`].
+    #[serde(
+        default,
+        deserialize_with = "positive_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub auto_threshold: Option<f64>,
     /// `[preparation]`: the dynamic method's settings.
     #[serde(default)]
     pub preparation: PreparationSection,
@@ -320,6 +330,7 @@ impl Preset {
             contact: ContactSection::default(),
             mesh: SpecimenMesh::default(),
             model: ParticleModel::default(),
+            auto_threshold: None,
             preparation: PreparationSection::default(),
             membrane: MembraneSection::default(),
             test: TestSection {

@@ -187,6 +187,11 @@ pub struct TestSummary {
     pub coarse_graining: f64,
     /// Exact scaling applied.
     pub exact_scaling: bool,
+    /// The specimen's particle model as asked for: `deformable`, `rigid` or `auto`.
+    pub model: String,
+    /// Per size class: diameter, count, the model used (`auto` resolved) and, for
+    /// `auto`, the estimate behind the choice.
+    pub classes: Vec<crate::ClassCount>,
     /// Counts and step.
     pub plan: TestPlan,
     /// Membrane divisions (around, along) and triangles.
@@ -475,6 +480,9 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
         bodies: model.particles,
         coarse_graining: spec.coarse_graining,
         exact_scaling: spec.exact_scaling,
+        model: spec.model.name().into(),
+        // The counts were computed when the model was built.
+        classes: spec.counts().map(|c| c.classes).unwrap_or_default(),
         plan: TestPlan {
             particles: model.particles,
             particle_nodes: model.membrane().first_node(),

@@ -225,11 +225,13 @@ impl Default for TestSection {
 }
 
 impl TestSection {
-    /// The test's `dt_safety`: the given one, else the default of the particle model.
-    pub fn dt_safety_for(&self, model: fdem_solver::ParticleModel) -> f64 {
-        self.dt_safety.unwrap_or(match model {
-            fdem_solver::ParticleModel::Deformable => TEST_DT_SAFETY_DEFORMABLE,
-            fdem_solver::ParticleModel::Rigid => TEST_DT_SAFETY_RIGID,
+    /// The test's `dt_safety`: the given one, else the default for a specimen with or
+    /// without rigid particles.
+    pub fn dt_safety_for(&self, has_rigid: bool) -> f64 {
+        self.dt_safety.unwrap_or(if has_rigid {
+            TEST_DT_SAFETY_RIGID
+        } else {
+            TEST_DT_SAFETY_DEFORMABLE
         })
     }
 

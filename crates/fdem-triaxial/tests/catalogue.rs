@@ -33,7 +33,11 @@ fn equal_series_counts_are_exactly_table_2() {
     for name in ["E1", "E2", "E3", "E4", "E2s", "E3s", "E4s"] {
         let c = Preset::find(name).unwrap().spec().counts().unwrap();
         assert_eq!((c.particles, c.elements, c.nodes), table_2(name), "{name}");
-        assert_eq!((c.elements_per_particle, c.nodes_per_particle), (80, 205));
+        let class = &c.classes[0];
+        assert_eq!(
+            (class.elements_per_particle, class.nodes_per_particle),
+            (80, 205)
+        );
     }
 }
 

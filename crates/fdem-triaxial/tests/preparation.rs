@@ -73,6 +73,28 @@ fn small_rigid() -> &'static PreparedSpecimen {
     })
 }
 
+/// The small specimen with two size classes and `model = "auto"`, its threshold between
+/// the two classes' estimated ratios: the small particles rigid, the large deformable.
+fn small_mixed() -> &'static PreparedSpecimen {
+    static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let text = format!("model = \"auto\"\n{SMALL}").replace(
+            "gradation = [{ size = 0.02, mass_fraction = 1.0 }]",
+            "gradation = [{ size = 0.02, mass_fraction = 0.5 }, { size = 0.03, mass_fraction = 0.5 }]",
+        );
+        let mut spec = SpecimenSpec::from_toml_str(&text, "small mixed").unwrap();
+        let ratios: Vec<f64> = spec
+            .counts()
+            .unwrap()
+            .classes
+            .iter()
+            .map(|c| c.auto.unwrap().ratio)
+            .collect();
+        spec.auto_threshold = Some((ratios[0] * ratios[1]).sqrt());
+        prepare(&spec, &mut Silent).unwrap()
+    })
+}
+
 fn pile() -> &'static PreparedSpecimen {
     static CELL: OnceLock<PreparedSpecimen> = OnceLock::new();
     CELL.get_or_init(|| {
@@ -213,6 +235,37 @@ fn a_rigid_specimen_is_prepared_with_its_poses_and_no_elements() {
     );
 }
 
+/// `model = "auto"` resolves per size class: with a threshold between the two classes'
+/// estimated ratios (the ratio grows with the diameter at a fixed penalty), the small
+/// class is rigid and the large one deformable, in the counts, the prepared model and
+/// the saved state.
+#[test]
+fn an_auto_specimen_mixes_rigid_and_deformable_classes() {
+    let s = small_mixed();
+    let counts = s.spec.counts().unwrap();
+    let models: Vec<_> = counts.classes.iter().map(|c| c.model).collect();
+    assert_eq!(
+        models,
+        [
+            fdem_solver::ParticleModel::Rigid,
+            fdem_solver::ParticleModel::Deformable
+        ]
+    );
+    let (small, large) = (counts.classes[0].particles, counts.classes[1].particles);
+    assert_eq!(counts.rigid_particles, small);
+    assert!(s.report.checks.passed(), "{:?}", s.report.checks);
+    assert_eq!(s.state.rigid.len() as u64, small);
+    assert_eq!(
+        s.report.elements,
+        large * counts.classes[1].elements_per_particle
+    );
+    let sim = s.simulation().unwrap();
+    for (p, (_, body)) in s.particles.iter().zip(sim.particles()) {
+        let rigid = body.kind == fdem_solver::BodyKind::Rigid;
+        assert_eq!(rigid, p.class == 0, "class {} is {:?}", p.class, body.kind);
+    }
+}
+
 fn bits(v: &[[f64; 3]]) -> Vec<[u64; 3]> {
     v.iter().map(|x| x.map(f64::to_bits)).collect()
 }
@@ -224,6 +277,7 @@ fn a_saved_specimen_reloads_bit_for_bit_and_steps_identically() {
         (small(), "small.fdemspec"),
         (pile(), "pile.fdemspec"),
         (small_rigid(), "rigid.fdemspec"),
+        (small_mixed(), "mixed.fdemspec"),
     ] {
         let path = dir.path().join(name);
         s.save(&path).unwrap();

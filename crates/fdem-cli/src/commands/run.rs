@@ -61,6 +61,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     super::set_threads(args.threads)?;
     // `run_scene` builds (and so validates) everything before it creates any output.
     let scene = Scene::load(&args.scene)?;
+    // Every `auto` decision, once per kind of particle.
+    let mut decisions: Vec<String> = Vec::new();
+    for (_, estimate) in scene.resolved_models()? {
+        if let Some(line) = estimate.map(|e| format!("auto: {e}"))
+            && !decisions.contains(&line)
+        {
+            eprintln!("{line}");
+            decisions.push(line);
+        }
+    }
     let interrupt = Arc::new(AtomicBool::new(false));
     {
         let flag = Arc::clone(&interrupt);

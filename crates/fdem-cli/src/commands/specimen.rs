@@ -30,6 +30,9 @@ pub enum ModelArg {
     Deformable,
     /// Rigid bodies with the meshes' surfaces and mass properties.
     Rigid,
+    /// Per size class, rigid where the estimated deflection is a small fraction of the
+    /// contact overlap (docs/MODEL.md section 12).
+    Auto,
 }
 
 impl ModelArg {
@@ -38,6 +41,7 @@ impl ModelArg {
         match self {
             ModelArg::Deformable => fdem_solver::ParticleModel::Deformable,
             ModelArg::Rigid => fdem_solver::ParticleModel::Rigid,
+            ModelArg::Auto => fdem_solver::ParticleModel::Auto,
         }
     }
 }
@@ -221,15 +225,16 @@ pub fn counts_json(counts: &Counts) -> String {
 
 fn print_counts(name: &str, counts: &Counts) {
     println!(
-        "{name}: {} particles, {} elements, {} nodes ({} elements and {} nodes per particle); \
-         nominal solid fraction {:.4}",
+        "{name}: {} particles ({} rigid), {} elements, {} nodes; nominal solid fraction {:.4}",
         counts.particles,
+        counts.rigid_particles,
         counts.elements,
         counts.nodes,
-        counts.elements_per_particle,
-        counts.nodes_per_particle,
         counts.solid_fraction
     );
+    for line in counts.model_report() {
+        println!("  {line}");
+    }
     println!(
         "{:>14} {:>14} {:>12}",
         "diameter (m)", "mass fraction", "particles"

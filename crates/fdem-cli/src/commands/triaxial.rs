@@ -199,9 +199,12 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
     let counts = spec.counts()?;
     let (dt, _, source) = specimen_time_step(&spec)?;
     eprintln!(
-        "prepare {}: {} particles, {} elements, {} nodes; dt = {dt:.3e} s ({source})",
-        spec.name, counts.particles, counts.elements, counts.nodes
+        "prepare {}: {} particles ({} rigid), {} elements, {} nodes; dt = {dt:.3e} s ({source})",
+        spec.name, counts.particles, counts.rigid_particles, counts.elements, counts.nodes
     );
+    for line in counts.model_report() {
+        eprintln!("  {line}");
+    }
     let mut progress =
         PreparationProgress::new(std::io::stderr().is_terminal(), Arc::clone(interrupt));
     let result = prepare(&spec, &mut progress);
