@@ -30,6 +30,8 @@ enum Command {
     Specimen(commands::specimen::SpecimenArgs),
     /// The triaxial test end to end: prepare (or reuse) a specimen, consolidate, shear, write curve.csv, summary.json, plots and peak contacts.
     Triaxial(commands::triaxial::TriaxialArgs),
+    /// Finished triaxial tests side by side: curves on one chart, results and costs against the first run.
+    Compare(commands::compare::CompareArgs),
     /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
     Micro(commands::micro::MicroArgs),
 }
@@ -62,6 +64,7 @@ fn main() -> ExitCode {
         Command::Coarsen(args) => commands::coarsen::run(&args),
         Command::Specimen(args) => commands::specimen::run(&args),
         Command::Triaxial(args) => commands::triaxial::run(&args),
+        Command::Compare(args) => commands::compare::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

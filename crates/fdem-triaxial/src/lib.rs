@@ -48,6 +48,7 @@
 //! ```
 #![warn(missing_docs)]
 
+mod compare;
 mod counts;
 mod error;
 mod file;
@@ -57,10 +58,12 @@ mod membrane;
 mod placement;
 mod plot;
 mod prepare;
+mod remodel;
 mod spec;
 mod test_run;
 mod test_spec;
 
+pub use compare::{COMPARISON_HEADER, FinishedRun, RunCost, comparison_row, write_comparison};
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;
 pub use file::{FORMAT_VERSION, MAGIC};

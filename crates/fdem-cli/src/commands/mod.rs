@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod coarsen;
+pub mod compare;
 pub mod mesh;
 pub mod micro;
 pub mod run;

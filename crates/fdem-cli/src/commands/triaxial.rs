@@ -172,6 +172,17 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
             );
         }
         let mut s = PreparedSpecimen::load(path)?;
+        if let Some(model) = args.model
+            && model.model() != s.spec.model
+        {
+            eprintln!(
+                "the {} packing of {} in the {} model (same places, at rest)",
+                s.spec.model.name(),
+                path.display(),
+                model.model().name()
+            );
+            s = s.in_model(model.model())?;
+        }
         if let Some(strain) = args.strain {
             s.spec.test.target_strain = strain;
             s.spec.validate(&path.display().to_string())?;
