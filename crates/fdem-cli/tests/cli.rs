@@ -344,3 +344,166 @@ fn scale_and_coarsen_work_on_every_example_scene() {
     }
     assert!(!out_path.exists());
 }
+
+/// A scene that runs for minutes: two particles, 10 s of simulated time.
+const LONG_SCENE: &str = r#"
+[simulation]
+duration = 10.0
+output_interval = 1.0e-3
+[material]
+density = 2650.0
+youngs_modulus = 40.0e9
+poisson_ratio = 0.2
+[[particle]]
+diameter = 0.015
+center = [0.0, 0.0, 0.0]
+velocity = [0.5, 0.0, 0.0]
+[[particle]]
+diameter = 0.015
+center = [0.0152, 0.0, 0.0]
+"#;
+
+/// `fdem run` stopped by SIGTERM, by SIGINT, or by SIGINT twice at once (as `timeout -s
+/// INT` delivers it) ends within seconds with a complete `interrupted` summary, whole CSV
+/// rows and no temporary file.
+#[cfg(unix)]
+#[test]
+fn signals_stop_a_run_with_complete_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("long.toml");
+    std::fs::write(&scene, LONG_SCENE).unwrap();
+    for (name, signals) in [
+        ("term", &["-TERM"][..]),
+        ("int", &["-INT"][..]),
+        ("int-twice", &["-INT", "-INT"][..]),
+    ] {
+        let out = dir.path().join(name);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fdem"))
+            .args([
+                "run",
+                scene.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .args(["--threads", "1"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Until the run has written its first rows.
+        let energy = out.join("energy.csv.part");
+        let start = std::time::Instant::now();
+        while !energy.exists() && start.elapsed().as_secs() < 30 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        for s in signals {
+            let pid = child.id().to_string();
+            assert!(
+                Command::new("kill")
+                    .args([*s, &pid])
+                    .status()
+                    .unwrap()
+                    .success()
+            );
+        }
+        let start = std::time::Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(start.elapsed().as_secs() < 20, "{name}: still running");
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        };
+        assert_eq!(status.code(), Some(1), "{name}");
+        let summary: Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["status"], "interrupted", "{name}");
+        let energy = std::fs::read_to_string(out.join("energy.csv")).unwrap();
+        assert!(
+            energy.ends_with('\n') && energy.lines().count() >= 2,
+            "{name}"
+        );
+        let parts: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".part"))
+            .collect();
+        assert!(parts.is_empty(), "{name}: {parts:?}");
+    }
+}
+
+/// An output path that cannot take the outputs is refused before any preparation, in one
+/// line: a file where `fdem triaxial` needs a directory, a directory where
+/// `fdem specimen --prepare` needs a file.
+#[test]
+fn unwritable_outputs_are_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("taken");
+    std::fs::write(&file, "x").unwrap();
+    let start = std::time::Instant::now();
+    let out = fdem(&["triaxial", "--quick", "--out", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("is a file"), "{err}");
+    let out = fdem(&[
+        "specimen",
+        "--test",
+        "E4s",
+        "--prepare",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("is a directory"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    // Neither prepared anything (a preparation takes far longer).
+    assert!(start.elapsed().as_secs() < 20);
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+}
+
+/// Flags that do not go together are refused in one line instead of one of them being
+/// ignored.
+#[test]
+fn conflicting_flags_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("f");
+    let cases: [&[&str]; 4] = [
+        &[
+            "specimen",
+            "--test",
+            "E4s",
+            "--toml",
+            "--prepare",
+            "--out",
+            "x",
+        ],
+        &[
+            "triaxial",
+            "--specimen",
+            "s.fdemspec",
+            "--level",
+            "3",
+            "--out",
+            "x",
+        ],
+        &[
+            "triaxial",
+            "--specimen",
+            "s.fdemspec",
+            "--quick",
+            "--out",
+            "x",
+        ],
+        &["scale", "--h", "2", "--out", f.to_str().unwrap()],
+    ];
+    for args in cases {
+        let out = fdem(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} accepted");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    }
+    assert!(!f.exists());
+}

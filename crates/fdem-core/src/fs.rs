@@ -139,6 +139,39 @@ impl Drop for AtomicFile {
     }
 }
 
+/// Clears what an earlier run left in its output directory `dir`, so that a new run's
+/// outputs are never mixed with an older one's: each of `files` (and its temporary), and
+/// in each `(folder, prefix)` of `series` the files whose names start with `prefix` (the
+/// numbered frames and snapshots of a series). Nothing else in `dir` is touched; missing
+/// files and folders are fine.
+///
+/// # Errors
+/// A file that exists but cannot be removed.
+pub fn clear_outputs(dir: &Path, files: &[&str], series: &[(&str, &str)]) -> io::Result<()> {
+    let remove = |path: &Path| match std::fs::remove_file(path) {
+        Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    };
+    for name in files {
+        let path = dir.join(name);
+        remove(&path)?;
+        remove(&partial_path(&path)?)?;
+    }
+    for (folder, prefix) in series {
+        let folder = dir.join(folder);
+        let Ok(entries) = std::fs::read_dir(&folder) else {
+            continue;
+        };
+        for entry in entries {
+            let entry = entry?;
+            if entry.file_name().to_string_lossy().starts_with(prefix) {
+                remove(&entry.path())?;
+            }
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -211,5 +244,31 @@ mod tests {
         file.write_all(b"time\n").unwrap();
         drop(file);
         assert_eq!(names(dir.path()), ["energy.csv"]);
+    }
+
+    /// `clear_outputs` removes the named files, their temporaries and the series files
+    /// with the prefix, and nothing else.
+    #[test]
+    fn clear_outputs_removes_only_the_named_outputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("frames")).unwrap();
+        for f in [
+            "a.csv",
+            "a.csv.part",
+            "keep.txt",
+            "frames/frame_000001.vtu",
+            "frames/other.vtu",
+        ] {
+            std::fs::write(d.join(f), "x").unwrap();
+        }
+        clear_outputs(
+            d,
+            &["a.csv", "missing.csv"],
+            &[("frames", "frame_"), ("none", "x")],
+        )
+        .unwrap();
+        assert_eq!(names(d), ["frames", "keep.txt"]);
+        assert_eq!(names(&d.join("frames")), ["other.vtu"]);
     }
 }

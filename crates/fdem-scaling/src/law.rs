@@ -175,6 +175,18 @@ impl ScaleLaw {
             time: power(h, p),
             mass: power(h, q),
         };
+        // Every catalogued factor must be a number (h = 1e300 overflows the mass factor).
+        for quantity in crate::CATALOGUE {
+            let factor = law.factor(quantity.dimension);
+            if !(factor.is_finite() && factor > 0.0) {
+                return Err(ScalingError::FactorOutOfRange {
+                    name: "h".into(),
+                    value: h,
+                    quantity: quantity.name.into(),
+                    factor,
+                });
+            }
+        }
         Ok((law, HExponents { time: p, mass: q }))
     }
 
@@ -272,6 +284,27 @@ mod tests {
         assert_eq!(law.factor_of("acceleration"), Some(1.0));
         // Stress is no longer invariant: it scales by h.
         assert_eq!(law.factor_of("stress"), Some(4.0));
+    }
+
+    /// A factor whose powers leave the floating-point range is refused with the first
+    /// quantity whose factor is not a number, instead of giving infinite or NaN factors.
+    #[test]
+    fn factors_beyond_the_floating_point_range_are_refused() {
+        for h in [1e300, 1e-300, 1e120] {
+            match ScaleLaw::exact(h) {
+                Err(ScalingError::FactorOutOfRange { value, factor, .. }) => {
+                    assert_eq!(value, h);
+                    assert!(!(factor.is_finite() && factor > 0.0), "{factor}");
+                }
+                other => panic!("h = {h}: {other:?}"),
+            }
+        }
+        let law = ScaleLaw::exact(1e20).unwrap();
+        assert!(
+            crate::CATALOGUE
+                .iter()
+                .all(|q| law.factor(q.dimension).is_finite())
+        );
     }
 
     #[test]

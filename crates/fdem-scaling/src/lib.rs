@@ -48,6 +48,22 @@ pub enum ScalingError {
         /// The value given.
         value: f64,
     },
+    /// A factor so large or small that the factor of a catalogued quantity is not a
+    /// finite positive number.
+    #[error(
+        "scale factor {name} = {value:e} makes the factor of {quantity} ({factor:e}) leave the range \
+         of floating-point numbers; use a factor nearer 1"
+    )]
+    FactorOutOfRange {
+        /// Which factor (`h`).
+        name: String,
+        /// The value given.
+        value: f64,
+        /// The first catalogued quantity whose factor is not finite and positive.
+        quantity: String,
+        /// That factor.
+        factor: f64,
+    },
     /// The two invariant quantities do not determine the time and mass factors.
     #[error(
         "holding {first} and {second} invariant does not determine the time and mass factors \

@@ -48,7 +48,9 @@ pub use model::{
     WallId,
 };
 pub use rigid::{RigidInertia, RigidState};
-pub use run::{Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count};
+pub use run::{
+    MAX_OUTPUTS, MAX_STEPS, Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count,
+};
 pub use scene::{
     AutoSection, ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS,
     MaterialSection, MeshSection, ParticleModel, ParticleSection, Scene, SimulationSection,

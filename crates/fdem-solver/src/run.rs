@@ -90,6 +90,29 @@ pub struct RunSummary {
     pub threads: usize,
 }
 
+/// The files a run writes into its directory, cleared at its start.
+const RUN_OUTPUTS: &[&str] = &[
+    "energy.csv",
+    "bodies.csv",
+    "walls.csv",
+    "summary.json",
+    "frames.pvd",
+];
+
+/// The numbered series a run writes, `(folder, file prefix)`, cleared at its start.
+const RUN_SERIES: &[(&str, &str)] = &[
+    ("frames", "frame_"),
+    ("contacts", "nodes_"),
+    ("contacts", "pairs_"),
+];
+
+/// The most steps a run may plan: about a year of steps at 30 microseconds each; a plan
+/// beyond it is a mistake in the scene's duration or step, refused before any work.
+pub const MAX_STEPS: u64 = 1_000_000_000_000;
+
+/// The most outputs a run may plan (`duration / output_interval`).
+pub const MAX_OUTPUTS: f64 = 1.0e6;
+
 /// Number of steps to cover `duration` with step `dt` (the last step may end up to one
 /// step past the duration; 1e-9 relative slack so that `duration = n dt` gives `n`).
 pub fn step_count(duration: f64, dt: f64) -> u64 {
@@ -109,12 +132,23 @@ pub fn run(
     interrupt: &AtomicBool,
 ) -> Result<RunSummary, SolverError> {
     let mut sim = scene.build()?;
+    let steps = step_count(scene.simulation.duration, sim.dt());
+    if steps > MAX_STEPS {
+        return Err(SolverError::InvalidScene(format!(
+            "{steps} steps of {:e} s to {:e} s are more than the {MAX_STEPS} a run may plan; \
+             shorten simulation.duration or lengthen the step",
+            sim.dt(),
+            scene.simulation.duration
+        )));
+    }
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| SolverError::io("creating directory", dir, e))?;
+    fdem_core::fs::clear_outputs(dir, RUN_OUTPUTS, RUN_SERIES)
+        .map_err(|e| SolverError::io("clearing the earlier outputs of", dir, e))?;
     let plan = RunPlan {
         duration: scene.simulation.duration,
         dt: sim.dt(),
-        steps: step_count(scene.simulation.duration, sim.dt()),
+        steps,
         bodies: sim.bodies().len(),
         nodes: sim.state().len(),
         elements: sim.n_elements(),
@@ -179,7 +213,9 @@ fn time_loop(
 ) -> Result<(), SolverError> {
     let interval = scene.output_interval();
     outputs.write(sim)?;
-    let mut next_output = interval;
+    // Output k is due at k * interval; counting k (not adding up times) always moves on,
+    // even where an interval is below the resolution of the time.
+    let mut next: u64 = 1;
     while sim.step() < steps {
         if interrupt.load(Ordering::Relaxed) {
             return Err(SolverError::Interrupted {
@@ -189,11 +225,13 @@ fn time_loop(
         }
         sim.advance()?;
         let last = sim.step() == steps;
-        if last || sim.time() >= next_output - 0.5 * sim.dt() {
+        let reached = sim.time() + 0.5 * sim.dt();
+        if last || reached >= next as f64 * interval {
             outputs.write(sim)?;
-            while next_output <= sim.time() + 0.5 * sim.dt() {
-                next_output += interval;
-            }
+            // The first output time after this step (the cast saturates, the sums too).
+            next = next
+                .saturating_add(1)
+                .max(((reached / interval).floor() as u64).saturating_add(1));
             observer.progress(sim.time(), sim.step());
         }
     }

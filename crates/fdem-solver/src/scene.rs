@@ -605,6 +605,19 @@ impl Scene {
                 format!("{interval} s is longer than the duration {} s", s.duration),
             ));
         }
+        if let Some(interval) = s.output_interval
+            && s.duration / interval > crate::run::MAX_OUTPUTS
+        {
+            return Err(fail(
+                "simulation.output_interval".into(),
+                format!(
+                    "{interval:e} s gives {:.3e} outputs over {:e} s, more than {:e}; lengthen it",
+                    s.duration / interval,
+                    s.duration,
+                    crate::run::MAX_OUTPUTS
+                ),
+            ));
+        }
         if let Some(dt) = s.dt
             && dt > s.duration
         {

@@ -176,6 +176,17 @@ where
     check(T::deserialize(d)?).map_err(D::Error::custom)
 }
 
+/// Deserializes exactly `N` numbers: an array of another length is refused with both
+/// lengths (a plain `[f64; N]` would take the first `N` of a longer array).
+fn numbers<'de, D, const N: usize>(d: D) -> Result<[f64; N], D::Error>
+where
+    D: Deserializer<'de>,
+{
+    let v = Vec::<f64>::deserialize(d)?;
+    <[f64; N]>::try_from(v.as_slice())
+        .map_err(|_| D::Error::custom(format!("expected {N} numbers, got {}", v.len())))
+}
+
 /// `deserialize_with` body for a number meeting `requirement`.
 pub fn meeting<'de, D: Deserializer<'de>>(d: D, requirement: Requirement) -> Result<f64, D::Error> {
     checked(d, |v| check_requirement(requirement, v))
@@ -228,7 +239,7 @@ pub fn level<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
 
 /// `deserialize_with` for a 3-vector whose components are all finite.
 pub fn vector<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
-    checked(d, check_vector)
+    check_vector(numbers(d)?).map_err(D::Error::custom)
 }
 
 /// `deserialize_with` for an optional 3-vector whose components are all finite.
@@ -238,12 +249,14 @@ pub fn vector_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D
 
 /// `deserialize_with` for ellipsoid axes (finite, > 0).
 pub fn axes<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
-    checked(d, check_axes)
+    check_axes(numbers(d)?).map_err(D::Error::custom)
 }
 
 /// `deserialize_with` for an optional unit quaternion `[w, x, y, z]`, normalised.
 pub fn unit_quaternion_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 4]>, D::Error> {
-    checked(d, check_unit_quaternion).map(Some)
+    check_unit_quaternion(numbers(d)?)
+        .map(Some)
+        .map_err(D::Error::custom)
 }
 
 #[cfg(test)]

@@ -89,6 +89,18 @@ fn each_kind_of_mistake_names_its_key_and_line() {
             12,
         ),
         (
+            "center = [0.0, 0.0, 0.0]",
+            "center = [0.0, 0.0, 0.0, 99.0]",
+            "particle[0].center",
+            12,
+        ),
+        (
+            "orientation = [1.0, 0.0, 0.0, 0.0]",
+            "orientation = [1.0, 0.0, 0.0, 0.0, 0.0]",
+            "particle[0].orientation",
+            15,
+        ),
+        (
             "orientation = [1.0, 0.0, 0.0, 0.0]",
             "orientation = [1.0, 1.0, 0.0, 0.0]",
             "particle[0].orientation",
@@ -403,4 +415,70 @@ model = "rigid"
     let values: Vec<f64> = array.data.clone().into_vec().unwrap();
     assert_eq!(values.len(), 9 * 240);
     assert!(values[9 * 160..].iter().all(|&v| v == 0.0));
+}
+
+/// Durations and steps at the ends of the floating-point range: a duration far below
+/// one step (with its default output interval below the time's resolution) runs its one
+/// step and returns; a plan of more than `MAX_STEPS` steps is refused before any output
+/// is created; more than `MAX_OUTPUTS` outputs are refused at their key.
+#[test]
+fn extreme_durations_and_steps_end_or_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let options = |name: &str| RunOptions {
+        out_dir: dir.path().join(name),
+        vtk: false,
+        contacts: false,
+    };
+    let tiny = GOOD
+        .replace("duration = 2.0e-5", "duration = 1.0e-300")
+        .replace("output_interval = 5.0e-6\n", "");
+    let scene = Scene::from_toml_str(&tiny, "tiny.toml").unwrap();
+    let summary = run(
+        &scene,
+        &options("tiny"),
+        &mut Silent,
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    assert_eq!(summary.steps, 1);
+    let many = GOOD.replace("output_interval = 5.0e-6", "dt = 1.0e-300");
+    let scene = Scene::from_toml_str(&many, "many.toml").unwrap();
+    let e = run(
+        &scene,
+        &options("many"),
+        &mut Silent,
+        &AtomicBool::new(false),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("more than"), "{e}");
+    assert!(!dir.path().join("many").exists());
+    let outputs = GOOD.replace("output_interval = 5.0e-6", "output_interval = 1.0e-12");
+    let (key, _, message) = rejection(&outputs);
+    assert_eq!(key, "simulation.output_interval", "{message}");
+}
+
+/// A run owns its directory: a shorter run into the directory of a longer one leaves
+/// only its own frames, and files that are not a run's output stay.
+#[test]
+fn a_shorter_run_leaves_no_frames_of_an_earlier_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let options = RunOptions {
+        out_dir: dir.path().to_path_buf(),
+        vtk: true,
+        contacts: false,
+    };
+    let count = |folder: &str| std::fs::read_dir(dir.path().join(folder)).unwrap().count();
+    let long = GOOD.replace("duration = 2.0e-5", "duration = 4.0e-5");
+    let scene = Scene::from_toml_str(&long, "long.toml").unwrap();
+    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    let frames = count("frames");
+    std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
+    let scene = Scene::from_toml_str(GOOD, "short.toml").unwrap();
+    let short = run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    assert!(frames > short.outputs, "{frames} frames");
+    assert_eq!(count("frames"), short.outputs);
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("notes.txt")).unwrap(),
+        "mine"
+    );
 }

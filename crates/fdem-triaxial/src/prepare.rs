@@ -232,7 +232,7 @@ pub struct PreparedSpecimen {
     pub report: PreparationReport,
 }
 
-fn solver(phase: &'static str) -> impl Fn(fdem_solver::SolverError) -> TriaxialError {
+pub(crate) fn solver(phase: &'static str) -> impl Fn(fdem_solver::SolverError) -> TriaxialError {
     move |cause| TriaxialError::Solver { phase, cause }
 }
 

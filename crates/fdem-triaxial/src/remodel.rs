@@ -1,7 +1,7 @@
 //! One prepared packing in another particle model: the same particles at the same poses,
 //! so that the two models can be compared from the same start.
 
-use crate::prepare::{Snapshot, specimen_time_step};
+use crate::prepare::{Snapshot, solver, specimen_time_step};
 use crate::{PreparedSpecimen, TriaxialError};
 use fdem_solver::{BodyKind, ParticleModel, RigidState, Simulation};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
@@ -44,7 +44,7 @@ impl PreparedSpecimen {
             report: self.report.clone(),
         };
         let from = self.simulation()?;
-        let mut to = target.scene()?.build().map_err(restore)?;
+        let mut to = target.scene()?.build().map_err(solver("restore"))?;
         let motions = particle_motions(&from);
         let reference: Vec<RigidState> = to.rigid_states();
         let mut rigid = Vec::with_capacity(reference.len());
@@ -66,7 +66,7 @@ impl PreparedSpecimen {
                 }
             }
         }
-        to.set_rigid_states(&rigid).map_err(restore)?;
+        to.set_rigid_states(&rigid).map_err(solver("restore"))?;
         let state = Snapshot {
             positions: to.state().positions.clone(),
             velocities: to.state().velocities.clone(),
@@ -76,13 +76,6 @@ impl PreparedSpecimen {
             step: self.state.step,
         };
         Ok(PreparedSpecimen { state, ..target })
-    }
-}
-
-fn restore(cause: fdem_solver::SolverError) -> TriaxialError {
-    TriaxialError::Solver {
-        phase: "restore",
-        cause,
     }
 }
 

@@ -529,6 +529,22 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
     }
 }
 
+/// The files a test writes into its directory, cleared at its start.
+const TEST_OUTPUTS: &[&str] = &[
+    "consolidation.csv",
+    "curve.csv",
+    "contacts_peak.csv",
+    "pairs_peak.csv",
+    "eta.svg",
+    "eps_v.svg",
+    "frames.pvd",
+    "boundary.pvd",
+    "summary.json",
+];
+
+/// The numbered series a test writes, `(folder, file prefix)`, cleared at its start.
+const TEST_SERIES: &[(&str, &str)] = &[("frames", "frame_"), ("frames", "boundary_")];
+
 /// Runs the triaxial test on a prepared specimen (consolidation, then shear) and writes
 /// its outputs into `options.out_dir`. Stops early, with complete outputs and a summary
 /// marked `interrupted`, when `interrupt` is set or the observer asks to.
@@ -548,6 +564,10 @@ pub fn run_test(
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| TriaxialError::io("creating directory", dir, e))?;
     let model = TestModel::build(prepared, options.dt)?;
+    // The directory is this test's: an earlier test's outputs go (the prepared specimen
+    // kept there for reuse stays).
+    fdem_core::fs::clear_outputs(dir, TEST_OUTPUTS, TEST_SERIES)
+        .map_err(|e| TriaxialError::io("clearing the earlier outputs of", dir, e))?;
     let sigma_0 = spec.confining_pressure;
     let d_min = spec.smallest_simulated_size();
     let vtk = if options.vtk {

@@ -34,17 +34,94 @@ pub fn positive_number(flag: &str, text: &str) -> anyhow::Result<f64> {
     Ok(value)
 }
 
+/// The most worker threads `--threads` accepts: beyond any machine this code targets, and
+/// low enough that a typo does not spawn thousands of threads.
+pub const MAX_THREADS: usize = 1024;
+
 /// Sets the number of worker threads of the global pool from `--threads` (all cores when
 /// it is not given).
 pub fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(threads) = threads {
         anyhow::ensure!(threads > 0, "--threads must be at least 1");
+        anyhow::ensure!(
+            threads <= MAX_THREADS,
+            "--threads {threads} is more than {MAX_THREADS}; give at most the machine's cores (or leave it out for all of them)"
+        );
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build_global()
             .context("setting up the thread pool")?;
     }
     Ok(())
+}
+
+/// How long after the first interrupt further ones count as the same one: `timeout -s INT`
+/// and a terminal both may deliver one signal to the process and to its group at once.
+const INTERRUPT_GRACE: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// A flag that Ctrl-C, SIGTERM or SIGHUP sets: the long loops check it, stop, and finish
+/// their outputs with an `interrupted` summary. A second interrupt more than
+/// [`INTERRUPT_GRACE`] after the first exits at once (status 130).
+pub fn interrupt_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, Mutex, PoisonError};
+    let flag = Arc::new(AtomicBool::new(false));
+    let set = Arc::clone(&flag);
+    let first: Mutex<Option<std::time::Instant>> = Mutex::new(None);
+    // Without a handler (one is already installed) the default action stays: the
+    // process ends at the signal, as before any handler.
+    let _ = ctrlc::set_handler(move || {
+        let mut first = first.lock().unwrap_or_else(PoisonError::into_inner);
+        match *first {
+            None => {
+                *first = Some(std::time::Instant::now());
+                set.store(true, Ordering::SeqCst);
+                eprintln!(
+                    "interrupted: finishing the outputs (interrupt again after {} s to exit at once)",
+                    INTERRUPT_GRACE.as_secs()
+                );
+            }
+            Some(t) if t.elapsed() >= INTERRUPT_GRACE => std::process::exit(130),
+            Some(_) => {}
+        }
+    });
+    flag
+}
+
+/// Checks before any long work that `dir` can hold outputs: it is (or can be created as)
+/// a directory in which a file can be written.
+pub fn check_output_dir(dir: &std::path::Path) -> anyhow::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        bail!(
+            "--out {} is a file, not a directory; give a directory for the outputs",
+            dir.display()
+        );
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let probe = dir.join(".fdem-write-check.part");
+    std::fs::write(&probe, b"").with_context(|| {
+        format!(
+            "{} cannot be written to; give a writable --out directory",
+            dir.display()
+        )
+    })?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// Checks before any long work that the file `path` can be written: not a directory,
+/// and its directory (created if missing) writable.
+pub fn check_output_file(path: &std::path::Path) -> anyhow::Result<()> {
+    if path.is_dir() {
+        bail!(
+            "--out {} is a directory; give the path of the file to write",
+            path.display()
+        );
+    }
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(parent) => check_output_dir(parent),
+        None => check_output_dir(std::path::Path::new(".")),
+    }
 }
 
 /// Writes a scene to `path` atomically, with a header comment saying where it came from.

@@ -4,8 +4,6 @@ use fdem_solver::{Observer, RunOptions, RunPlan, Scene, run as run_scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Arguments of `fdem run`.
 #[derive(clap::Args, Debug)]
@@ -71,16 +69,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             decisions.push(line);
         }
     }
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = Arc::clone(&interrupt);
-        // A second Ctrl-C while we finish the outputs still ends the process.
-        let _ = ctrlc::set_handler(move || {
-            if flag.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-        });
-    }
+    let interrupt = super::interrupt_flag();
     let mut progress = Progress { bar: None };
     let options = RunOptions {
         out_dir: args.out.clone(),

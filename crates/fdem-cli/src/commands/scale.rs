@@ -11,7 +11,7 @@ pub struct ScaleArgs {
     /// Scene file to scale exactly (omit to print the factor table only).
     scene: Option<PathBuf>,
     /// Where to write the scaled scene (required with a scene).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", requires = "scene")]
     out: Option<PathBuf>,
     /// Length scale factor h (> 0): the scaled system's lengths are h times the original's.
     #[arg(long = "h", value_name = "H", allow_hyphen_values = true)]

@@ -56,7 +56,11 @@ pub struct SpecimenArgs {
     #[arg(long, value_name = "SPEC.toml")]
     file: Option<PathBuf>,
     /// A prepared specimen file (written by --prepare): verify it and print its summary.
-    #[arg(long, value_name = "FILE")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with_all = ["level", "order", "model", "seed", "toml"]
+    )]
     specimen: Option<PathBuf>,
     /// List the built-in tests with their counts.
     #[arg(long)]
@@ -71,7 +75,7 @@ pub struct SpecimenArgs {
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Print the specimen definition as TOML (a starting point for a user file).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["prepare", "counts", "list"])]
     toml: bool,
     /// Override the mesh subdivision level (0 to 4).
     #[arg(long)]
@@ -388,15 +392,8 @@ pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
         let Some(out) = &args.out else {
             bail!("--prepare needs --out FILE, the prepared-specimen file to write");
         };
-        let interrupt = Arc::new(AtomicBool::new(false));
-        {
-            let flag = Arc::clone(&interrupt);
-            let _ = ctrlc::set_handler(move || {
-                if flag.swap(true, Ordering::SeqCst) {
-                    std::process::exit(130);
-                }
-            });
-        }
+        super::check_output_file(out)?;
+        let interrupt = super::interrupt_flag();
         let counts = spec.counts()?;
         eprintln!(
             "prepare {}: {} particles, {} elements, {} nodes",

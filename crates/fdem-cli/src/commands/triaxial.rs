@@ -30,8 +30,13 @@ pub struct TriaxialArgs {
     /// The quick test: a small, coarse specimen that runs end to end in a short time.
     #[arg(long)]
     quick: bool,
-    /// A prepared specimen file to test instead of preparing one (its own definition is used).
-    #[arg(long, value_name = "FILE")]
+    /// A prepared specimen file to test instead of preparing one (its own definition is
+    /// used; --model tests its packing in another model).
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with_all = ["test", "config", "quick", "order", "level", "fresh"]
+    )]
     specimen: Option<PathBuf>,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
@@ -42,7 +47,7 @@ pub struct TriaxialArgs {
     /// Override the mesh subdivision level (0 to 4).
     #[arg(long)]
     level: Option<u32>,
-    /// Override the particle model.
+    /// Override the particle model (with --specimen: test its packing in this model).
     #[arg(long, value_enum)]
     model: Option<ModelArg>,
     /// Override the target axial strain.
@@ -255,15 +260,8 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
             fdem_triaxial::MAX_TARGET_STRAIN
         );
     }
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = Arc::clone(&interrupt);
-        let _ = ctrlc::set_handler(move || {
-            if flag.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-        });
-    }
+    super::check_output_dir(&args.out)?;
+    let interrupt = super::interrupt_flag();
     let start = Instant::now();
     let prepared = prepared(args, &interrupt)?;
     let mut progress = TestProgress {
