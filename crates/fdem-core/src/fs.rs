@@ -172,6 +172,15 @@ pub fn clear_outputs(dir: &Path, files: &[&str], series: &[(&str, &str)]) -> io:
     Ok(())
 }
 
+/// The memory the operating system says new allocations can use (bytes): Linux's
+/// `MemAvailable` of `/proc/meminfo`; `None` where it cannot be read.
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -50,6 +50,8 @@ pub struct Counts {
     pub nodes: u64,
     /// Rigid particles.
     pub rigid_particles: u64,
+    /// Surface (contact) nodes of all particles.
+    pub surface_nodes: u64,
     /// Per size class, in the order of the gradation.
     pub classes: Vec<ClassCount>,
     /// Nominal solid volume `sum n_i pi d_i^3 / 6` (m^3).
@@ -58,7 +60,35 @@ pub struct Counts {
     pub solid_fraction: f64,
 }
 
+/// Bytes per node of the node state (positions, reference positions, velocities, forces,
+/// mass and inverse mass; docs/PERFORMANCE.md, "Memory").
+const BYTES_PER_NODE: u64 = 112;
+
+/// Bytes per element: the kernel's record, its bound and the connectivity (linear,
+/// quadratic; docs/PERFORMANCE.md, "Memory").
+const BYTES_PER_ELEMENT: [u64; 2] = [136, 208];
+
+/// Bytes per surface node for the contact model and the rest of a run (candidates,
+/// history, scratch), rounded up from a measured whole-process peak (docs/PERFORMANCE.md,
+/// "Memory").
+const BYTES_PER_SURFACE_NODE: u64 = 1024;
+
+/// A run's fixed memory beside its particles (binary, thread stacks, the membrane of a
+/// small test).
+const BYTES_BASE: u64 = 64 << 20;
+
 impl Counts {
+    /// Estimated peak memory of a preparation or test of these counts (bytes): node
+    /// state, elements, contact data per surface node and a fixed base.
+    pub fn memory_estimate(&self, quadratic: bool) -> u64 {
+        let per_element = BYTES_PER_ELEMENT[usize::from(quadratic)];
+        self.nodes
+            .saturating_mul(BYTES_PER_NODE)
+            .saturating_add(self.elements.saturating_mul(per_element))
+            .saturating_add(self.surface_nodes.saturating_mul(BYTES_PER_SURFACE_NODE))
+            .saturating_add(BYTES_BASE)
+    }
+
     /// One line per size class: its model and what it simulates per particle, and for
     /// an `auto` decision the estimate behind it.
     pub fn model_report(&self) -> Vec<String> {
@@ -213,7 +243,8 @@ impl SpecimenSpec {
         let solid_fraction = solid_volume / self.inner_volume();
         // A rigid particle simulates no elements and only its surface nodes.
         let deformable = (template.n_elements() as u64, template.n_nodes() as u64);
-        let rigid = (0, surface_node_count(&template).map_err(mesh_error)? as u64);
+        let surface_per_particle = surface_node_count(&template).map_err(mesh_error)? as u64;
+        let rigid = (0, surface_per_particle);
         let mut classes = Vec::with_capacity(per_class.len());
         for ((c, &n), &d) in self.gradation.iter().zip(&per_class).zip(&diameters) {
             let auto = match self.model {
@@ -252,6 +283,7 @@ impl SpecimenSpec {
             elements,
             nodes,
             rigid_particles,
+            surface_nodes: particles.saturating_mul(surface_per_particle),
             classes,
             solid_volume,
             solid_fraction,

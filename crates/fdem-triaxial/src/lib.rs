@@ -78,8 +78,8 @@ pub use plot::*;
 pub use prepare::{
     COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer,
     PREPARATION_ENERGY_TOLERANCE, Phase, PreparationReport, PreparedSpecimen, Silent, Snapshot,
-    Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, particle_sections, preparation_walls, prepare,
-    specimen_time_step, unbalanced_force_ratio,
+    Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, check_memory, particle_sections,
+    preparation_walls, prepare, specimen_time_step, unbalanced_force_ratio,
 };
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,

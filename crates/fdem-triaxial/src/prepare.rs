@@ -819,8 +819,39 @@ pub fn prepare(
     })
 }
 
-/// Refuses a specimen larger than one preparation handles, before any work.
+/// Refuses, before any work, a specimen whose estimated memory exceeds `available`
+/// (bytes; `None` when the platform does not say), with both figures.
+pub fn check_memory(
+    spec: &SpecimenSpec,
+    counts: &crate::Counts,
+    available: Option<u64>,
+) -> Result<(), TriaxialError> {
+    let need = counts.memory_estimate(spec.mesh.order == fdem_mesh::ElementOrder::Quadratic);
+    match available {
+        Some(have) if need > have => Err(TriaxialError::Definition {
+            origin: spec.name.clone(),
+            line: 0,
+            column: 0,
+            key: "gradation".into(),
+            message: format!(
+                "{} particles with {} nodes and {} elements need about {:.1} GB, but {:.1} GB \
+                 are available; use larger sizes, a coarse_graining factor, a lower mesh level, \
+                 the rigid model or a smaller specimen",
+                counts.particles,
+                counts.nodes,
+                counts.elements,
+                need as f64 / 1e9,
+                have as f64 / 1e9
+            ),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Refuses a specimen larger than one preparation handles or than the memory available,
+/// before any work.
 fn check_size(spec: &SpecimenSpec, counts: &crate::Counts) -> Result<(), TriaxialError> {
+    check_memory(spec, counts, fdem_core::fs::available_memory())?;
     if counts.nodes > MAX_NODES {
         return Err(TriaxialError::Definition {
             origin: spec.name.clone(),

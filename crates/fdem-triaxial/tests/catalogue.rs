@@ -486,3 +486,31 @@ fn random_rotations_are_unit_and_unbiased() {
     // Uniform directions: each mean component ~ N(0, 1/(3n)); 5 sigma = 0.02.
     assert!(mean.iter().all(|m| m.abs() < 0.02), "{mean:?}");
 }
+
+/// The memory estimate grows with the mesh and refuses what the available memory cannot
+/// hold, before any work, naming both figures: E1 at level 4 (about 194 M nodes with
+/// quadratic elements) needs tens of GB; E4s fits in 8 GB; the rigid E1 (level 1) needs
+/// less than 1 GB (a whole-process peak of 561 MB was measured, docs/PERFORMANCE.md).
+#[test]
+fn memory_estimates_refuse_what_cannot_fit() {
+    let mut e1 = Preset::find("E1").unwrap().spec();
+    e1.mesh.level = 4;
+    let counts = e1.counts().unwrap();
+    let need = counts.memory_estimate(true);
+    assert!(need > 20_000_000_000, "{need}");
+    let e = fdem_triaxial::check_memory(&e1, &counts, Some(8_000_000_000)).unwrap_err();
+    assert!(e.to_string().contains("GB"), "{e}");
+    assert!(fdem_triaxial::check_memory(&e1, &counts, None).is_ok());
+    let e4s = Preset::find("E4s").unwrap().spec();
+    let c = e4s.counts().unwrap();
+    assert!(fdem_triaxial::check_memory(&e4s, &c, Some(8_000_000_000)).is_ok());
+    let mut rigid = Preset::find("E1").unwrap().spec();
+    rigid.model = fdem_solver::ParticleModel::Rigid;
+    rigid.mesh.order = fdem_mesh::ElementOrder::Linear;
+    let c = rigid.counts().unwrap();
+    let estimate = c.memory_estimate(false);
+    assert!(
+        estimate > 561_000_000 && estimate < 1_000_000_000,
+        "{estimate}"
+    );
+}

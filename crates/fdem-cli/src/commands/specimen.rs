@@ -227,14 +227,17 @@ pub fn counts_json(counts: &Counts) -> String {
     )
 }
 
-fn print_counts(name: &str, counts: &Counts) {
+fn print_counts(name: &str, counts: &Counts, quadratic: bool) {
     println!(
-        "{name}: {} particles ({} rigid), {} elements, {} nodes; nominal solid fraction {:.4}",
+        "{name}: {} particles ({} rigid), {} elements, {} nodes; nominal solid fraction {:.4}; \
+         memory about {:.2} GB ({} surface nodes)",
         counts.particles,
         counts.rigid_particles,
         counts.elements,
         counts.nodes,
-        counts.solid_fraction
+        counts.solid_fraction,
+        counts.memory_estimate(quadratic) as f64 / 1e9,
+        counts.surface_nodes
     );
     for line in counts.model_report() {
         println!("  {line}");
@@ -366,7 +369,11 @@ pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
             if args.json {
                 println!("{}", counts_json(&counts));
             } else {
-                print_counts(&s.spec.name, &counts);
+                print_counts(
+                    &s.spec.name,
+                    &counts,
+                    s.spec.mesh.order == ElementOrder::Quadratic,
+                );
             }
         } else if args.json {
             println!("{}", summary_json(path, &s)?);
@@ -424,7 +431,11 @@ pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
     if args.json {
         println!("{}", counts_json(&counts));
     } else {
-        print_counts(&spec.name, &counts);
+        print_counts(
+            &spec.name,
+            &counts,
+            spec.mesh.order == ElementOrder::Quadratic,
+        );
         let simulated = spec.simulated()?;
         for (key, quantity, factor) in &simulated.scaled {
             println!("exact scaling: {key} ({quantity}) x {factor}");
