@@ -253,6 +253,7 @@ fn simulation_fields(w: &mut Walker<'_, '_>, s: &mut SimulationSection) {
         output_interval,
         gravity,
         energy_tolerance,
+        allow_initial_overlap: _, // a switch, not a quantity
     } = s;
     w.scalar("duration", "time", Role::Domain, duration);
     w.opt("dt", "time_step", Role::Domain, dt);

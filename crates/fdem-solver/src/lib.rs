@@ -22,6 +22,7 @@ mod dimensions;
 mod engine;
 mod error;
 mod forces;
+mod initial_overlap;
 mod model;
 pub mod output;
 mod rigid;

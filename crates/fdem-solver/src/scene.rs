@@ -301,6 +301,11 @@ pub struct SimulationSection {
         skip_serializing_if = "Option::is_none"
     )]
     pub energy_tolerance: Option<f64>,
+    /// Accept particles that start deeper inside one another, or across a wall, than a
+    /// contact may reach (half the depth limit); default false: such a start is refused
+    /// before the run, naming the bodies.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub allow_initial_overlap: bool,
 }
 
 /// `[material]`: isotropic linear elasticity.
@@ -776,6 +781,25 @@ impl Scene {
         ))
     }
 
+    /// The radius of the ball inside each particle's mesh about its centre (m).
+    fn inscribed_radii(&self) -> Result<Vec<f64>, SolverError> {
+        let mut known: Vec<(MeshSection, f64)> = Vec::new();
+        let mut radii = Vec::with_capacity(self.particles.len());
+        for p in &self.particles {
+            let mesh = p.mesh.unwrap_or_default();
+            let unit = match known.iter().find(|(m, _)| *m == mesh) {
+                Some(&(_, r)) => r,
+                None => {
+                    let r = crate::initial_overlap::inscribed_radius(&mesh.template()?);
+                    known.push((mesh, r));
+                    r
+                }
+            };
+            radii.push(unit * p.diameter);
+        }
+        Ok(radii)
+    }
+
     /// The model of every particle, `auto` resolved, with the estimate behind each `auto`
     /// decision.
     ///
@@ -806,6 +830,15 @@ impl Scene {
         // A lone particle with no wall has nothing to touch: model no contact.
         if c.enabled && (self.particles.len() >= 2 || !self.walls.is_empty()) {
             let settings = self.contact_settings(&model)?;
+            if !self.simulation.allow_initial_overlap {
+                let limit = 0.5 * settings.depth_limit.unwrap_or(settings.margin);
+                crate::initial_overlap::check(
+                    &self.particles,
+                    &self.inscribed_radii()?,
+                    &self.walls,
+                    limit,
+                )?;
+            }
             for wall in self.contact_walls() {
                 model.add_wall(wall);
             }

@@ -482,3 +482,39 @@ fn a_shorter_run_leaves_no_frames_of_an_earlier_one() {
         "mine"
     );
 }
+
+/// Impossible starts are refused before the run, naming the bodies: two particles at one
+/// centre or half inside each other, a particle behind a wall or cut by one. A slight
+/// overlap (a contact) is accepted, and `allow_initial_overlap = true` accepts them all.
+#[test]
+fn impossible_starting_geometry_is_refused_naming_the_bodies() {
+    let second =
+        |x: f64| format!("{GOOD}\n[[particle]]\ndiameter = 0.015\ncenter = [{x}, 0.0, 0.0]\n");
+    let wall = |z: f64| {
+        format!(
+            "{GOOD}\n[[wall]]\ntype = \"plane\"\npoint = [0.0, 0.0, {z}]\nnormal = [0.0, 0.0, 1.0]\n"
+        )
+    };
+    let refusal = |text: &str| match Scene::from_toml_str(text, "s.toml").unwrap().build() {
+        Ok(_) => None,
+        Err(e) => Some(e.to_string()),
+    };
+    for (text, needle) in [
+        (second(0.0), "particle[0] and particle[1]"),
+        (second(0.0075), "particle[0] and particle[1]"),
+        (wall(0.01), "behind wall[0]"),
+        (wall(-0.003), "cut by wall[0]"),
+    ] {
+        let message = refusal(&text).unwrap_or_else(|| panic!("accepted: {needle}"));
+        assert!(message.contains(needle), "{message}");
+        assert!(message.contains("allow_initial_overlap"), "{message}");
+        let allowed = text.replace(
+            "output_interval = 5.0e-6",
+            "output_interval = 5.0e-6\nallow_initial_overlap = true",
+        );
+        assert_eq!(refusal(&allowed), None, "{needle}");
+    }
+    // Touching (the inscribed polyhedra just apart) and resting on a wall are fine.
+    assert_eq!(refusal(&second(0.0149)), None);
+    assert_eq!(refusal(&wall(-0.0075)), None);
+}

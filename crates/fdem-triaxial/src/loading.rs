@@ -334,6 +334,7 @@ fn particle_scene(prepared: &PreparedSpecimen) -> Result<Scene, TriaxialError> {
             output_interval: None,
             gravity: None,
             energy_tolerance: None,
+            allow_initial_overlap: false,
         },
         material: simulated.material.clone(),
         particles: prepared.particle_sections()?,

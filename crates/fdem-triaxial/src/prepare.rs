@@ -313,6 +313,7 @@ fn scene(
             output_interval: None,
             gravity: if g == [0.0; 3] { None } else { Some(g) },
             energy_tolerance: Some(PREPARATION_ENERGY_TOLERANCE),
+            allow_initial_overlap: false,
         },
         material: simulated.material,
         particles,
