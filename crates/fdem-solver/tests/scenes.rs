@@ -314,6 +314,19 @@ fn a_free_body_obeys_exact_scaling() {
     }
 }
 
+/// Runs the scene `text` with VTK frames into a new temporary directory.
+fn run_with_frames(text: &str) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::from_toml_str(text, "frames.toml").unwrap();
+    let options = RunOptions {
+        out_dir: dir.path().to_path_buf(),
+        vtk: true,
+        contacts: false,
+    };
+    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    dir
+}
+
 /// A scene of rigid particles only writes its frames as the particles' surface
 /// triangles (VTK_TRIANGLE), one `body` value per triangle, and no stress.
 #[test]
@@ -337,14 +350,7 @@ center = [0.0102, 0.0, 0.0]
 velocity = [-1.0, 0.0, 0.0]
 model = "rigid"
 "#;
-    let dir = tempfile::tempdir().unwrap();
-    let scene = Scene::from_toml_str(text, "rigid.toml").unwrap();
-    let options = RunOptions {
-        out_dir: dir.path().to_path_buf(),
-        vtk: true,
-        contacts: false,
-    };
-    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    let dir = run_with_frames(text);
     let vtu = std::fs::read_to_string(dir.path().join("frames/frame_000000.vtu")).unwrap();
     // Level 1: 42 surface nodes and 80 triangles per particle.
     assert!(vtu.contains("NumberOfPoints=\"84\""), "{}", &vtu[..300]);
@@ -379,14 +385,7 @@ diameter = 0.01
 center = [0.0, 0.0102, 0.0]
 model = "rigid"
 "#;
-    let dir = tempfile::tempdir().unwrap();
-    let scene = Scene::from_toml_str(text, "mixed.toml").unwrap();
-    let options = RunOptions {
-        out_dir: dir.path().to_path_buf(),
-        vtk: true,
-        contacts: false,
-    };
-    run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+    let dir = run_with_frames(text);
     let vtk = vtkio::Vtk::import(dir.path().join("frames/frame_000000.vtu")).unwrap();
     let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
         panic!("not an unstructured grid");

@@ -334,7 +334,9 @@ fn particle_scene(prepared: &PreparedSpecimen) -> Result<Scene, TriaxialError> {
             output_interval: None,
             gravity: None,
             energy_tolerance: None,
-            allow_initial_overlap: false,
+            // The particles sit at their reference placements here and start from a
+            // restored state (the preparation checks its packing itself).
+            allow_initial_overlap: true,
         },
         material: simulated.material.clone(),
         particles: prepared.particle_sections()?,

@@ -313,7 +313,9 @@ fn scene(
             output_interval: None,
             gravity: if g == [0.0; 3] { None } else { Some(g) },
             energy_tolerance: Some(PREPARATION_ENERGY_TOLERANCE),
-            allow_initial_overlap: false,
+            // The particles sit at their reference placements here and start from a
+            // restored state (the preparation checks its packing itself).
+            allow_initial_overlap: true,
         },
         material: simulated.material,
         particles,
