@@ -507,3 +507,49 @@ fn conflicting_flags_are_refused() {
     }
     assert!(!f.exists());
 }
+
+/// `fdem specimen --prepare` stopped by SIGTERM ends within seconds with a failure, and
+/// writes neither the specimen file nor its temporary.
+#[cfg(unix)]
+#[test]
+fn a_signal_stops_a_preparation_without_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("e4s.fdemspec");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_fdem"))
+        .args([
+            "specimen",
+            "--test",
+            "E4s",
+            "--order",
+            "linear",
+            "--prepare",
+        ])
+        .args(["--out", file.to_str().unwrap(), "--threads", "1"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(start.elapsed().as_secs() < 30, "still preparing");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(!status.success());
+    assert!(err.contains("interrupted"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}

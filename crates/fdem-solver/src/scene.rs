@@ -9,7 +9,7 @@ use crate::SolverError;
 use crate::engine::{Guard, Simulation, TimeStep};
 use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
 use crate::toml_input::{
-    axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
+    Number, axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
     positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
 };
 use crate::{DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, deflection_estimate};
@@ -607,7 +607,11 @@ impl Scene {
         {
             return Err(fail(
                 "simulation.output_interval".into(),
-                format!("{interval} s is longer than the duration {} s", s.duration),
+                format!(
+                    "{} s is longer than the duration {} s",
+                    Number(interval),
+                    Number(s.duration)
+                ),
             ));
         }
         if let Some(interval) = s.output_interval
@@ -628,7 +632,11 @@ impl Scene {
         {
             return Err(fail(
                 "simulation.dt".into(),
-                format!("{dt} s is longer than the duration {} s", s.duration),
+                format!(
+                    "{} s is longer than the duration {} s",
+                    Number(dt),
+                    Number(s.duration)
+                ),
             ));
         }
         Ok(())

@@ -68,6 +68,22 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, origin: &str) -> Result<T, In
     })
 }
 
+/// A number as messages print it: plain where that is short (1e-3 <= |v| < 1e7, and
+/// zero), in exponent form otherwise, so that `1e-300` is not written as 300 digits.
+#[derive(Clone, Copy, Debug)]
+pub struct Number(pub f64);
+
+impl std::fmt::Display for Number {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if self.0 == 0.0 || !self.0.is_finite() || (1e-3..1e7).contains(&a) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
 // ---- Range checks: one rule each, used while deserializing (the error then carries the
 // value's line) and by code that validates sections built in code (`check_*`). ----
 
@@ -78,9 +94,14 @@ pub fn check_requirement(requirement: Requirement, v: f64) -> Result<f64, String
     } else {
         Err(match requirement {
             Requirement::Positive => {
-                format!("must be a positive finite number (SI units), got {v}")
+                format!(
+                    "must be a positive finite number (SI units), got {}",
+                    Number(v)
+                )
             }
-            Requirement::NonNegative => format!("must be a finite number >= 0, got {v}"),
+            Requirement::NonNegative => {
+                format!("must be a finite number >= 0, got {}", Number(v))
+            }
         })
     }
 }
@@ -100,7 +121,7 @@ pub fn check_fraction(v: f64) -> Result<f64, String> {
     if v > 0.0 && v <= 1.0 {
         Ok(v)
     } else {
-        Err(format!("must lie in (0, 1], got {v}"))
+        Err(format!("must lie in (0, 1], got {}", Number(v)))
     }
 }
 
@@ -109,7 +130,10 @@ pub fn check_poisson(v: f64) -> Result<f64, String> {
     if v > -1.0 && v < 0.5 {
         Ok(v)
     } else {
-        Err(format!("Poisson's ratio must lie in (-1, 0.5), got {v}"))
+        Err(format!(
+            "Poisson's ratio must lie in (-1, 0.5), got {}",
+            Number(v)
+        ))
     }
 }
 

@@ -517,3 +517,21 @@ fn impossible_starting_geometry_is_refused_naming_the_bodies() {
     assert_eq!(refusal(&second(0.0149)), None);
     assert_eq!(refusal(&wall(-0.0075)), None);
 }
+
+/// Extreme values in messages are printed in exponent form, not as hundreds of digits.
+#[test]
+fn extreme_values_are_printed_short_in_messages() {
+    for (from, to, shown) in [
+        ("diameter = 0.015", "diameter = -1e-300", "-1e-300"),
+        ("poisson_ratio = 0.2", "poisson_ratio = -1e300", "-1e300"),
+        (
+            "output_interval = 5.0e-6",
+            "output_interval = 1e300",
+            "1e300 s is longer than the duration",
+        ),
+    ] {
+        let (_, _, message) = rejection(&GOOD.replacen(from, to, 1));
+        assert!(message.contains(shown), "{message}");
+        assert!(message.len() < 200, "{message}");
+    }
+}
