@@ -363,6 +363,29 @@ diameter = 0.015
 center = [0.0152, 0.0, 0.0]
 "#;
 
+/// Sends `signals` (as `kill` flags) to `child` one after the other and waits for it to
+/// end, at most `seconds`.
+#[cfg(unix)]
+fn signal_and_wait(
+    child: &mut std::process::Child,
+    signals: &[&str],
+    seconds: u64,
+) -> std::process::ExitStatus {
+    let pid = child.id().to_string();
+    for s in signals {
+        let sent = Command::new("kill").args([*s, &pid]).status().unwrap();
+        assert!(sent.success(), "kill {s} {pid}");
+    }
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            return status;
+        }
+        assert!(start.elapsed().as_secs() < seconds, "still running");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
 /// `fdem run` stopped by SIGTERM, by SIGINT, or by SIGINT twice at once (as `timeout -s
 /// INT` delivers it) ends within seconds with a complete `interrupted` summary, whole CSV
 /// rows and no temporary file.
@@ -397,24 +420,7 @@ fn signals_stop_a_run_with_complete_outputs() {
             std::thread::sleep(std::time::Duration::from_millis(50));
         }
         std::thread::sleep(std::time::Duration::from_millis(300));
-        for s in signals {
-            let pid = child.id().to_string();
-            assert!(
-                Command::new("kill")
-                    .args([*s, &pid])
-                    .status()
-                    .unwrap()
-                    .success()
-            );
-        }
-        let start = std::time::Instant::now();
-        let status = loop {
-            if let Some(status) = child.try_wait().unwrap() {
-                break status;
-            }
-            assert!(start.elapsed().as_secs() < 20, "{name}: still running");
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        };
+        let status = signal_and_wait(&mut child, signals, 20);
         assert_eq!(status.code(), Some(1), "{name}");
         let summary: Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
@@ -530,22 +536,7 @@ fn a_signal_stops_a_preparation_without_a_file() {
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_secs(2));
-    let pid = child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-TERM", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
-    let start = std::time::Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        assert!(start.elapsed().as_secs() < 30, "still preparing");
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    };
+    let status = signal_and_wait(&mut child, &["-TERM"], 30);
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
     assert!(!status.success());
