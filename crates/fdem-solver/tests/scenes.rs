@@ -535,3 +535,102 @@ fn extreme_values_are_printed_short_in_messages() {
         assert!(message.len() < 200, "{message}");
     }
 }
+
+/// Values across the whole f64 range, as TOML spells them.
+const EXTREMES: &[&str] = &[
+    "0.0", "-0.0", "5e-324", "1e-308", "1e-300", "1e-12", "1.0", "-1.0", "1e12", "1e300",
+    "1.7e308", "nan", "inf", "-inf",
+];
+
+/// The numeric fields of a two-particle scene with a wall, as `(table line, key)`.
+const FIELDS: &[&str] = &[
+    "duration",
+    "dt",
+    "output_interval",
+    "density",
+    "youngs_modulus",
+    "poisson_ratio",
+    "diameter",
+    "cx",
+    "vx",
+    "normal_penalty",
+    "friction",
+    "damping",
+    "margin",
+    "depth_limit",
+    "wall_z",
+    "wall_vz",
+];
+
+/// The scene with field `k` set to `v` (every other field ordinary).
+fn extreme_scene(k: usize, v: &str) -> String {
+    let value = |name: &str, ordinary: &str| {
+        if FIELDS[k] == name {
+            v.to_string()
+        } else {
+            ordinary.to_string()
+        }
+    };
+    format!(
+        "[simulation]\nduration = {}\ndt = {}\noutput_interval = {}\n\
+         [material]\ndensity = {}\nyoungs_modulus = {}\npoisson_ratio = {}\n\
+         [[particle]]\ndiameter = {}\ncenter = [{}, 0.0, 0.0]\nvelocity = [{}, 0.0, 0.0]\n\
+         [[particle]]\ndiameter = 0.015\ncenter = [0.0152, 0.0, 0.0]\n\
+         [contact]\nnormal_penalty = {}\nfriction = {}\ndamping = {}\nmargin = {}\ndepth_limit = {}\n\
+         [[wall]]\ntype = \"plane\"\npoint = [0.0, 0.0, {}]\nnormal = [0.0, 0.0, 1.0]\nvelocity = [0.0, 0.0, {}]\n",
+        value("duration", "2.0e-6"),
+        value("dt", "1.0e-8"),
+        value("output_interval", "1.0e-6"),
+        value("density", "2650.0"),
+        value("youngs_modulus", "40.0e9"),
+        value("poisson_ratio", "0.2"),
+        value("diameter", "0.015"),
+        value("cx", "0.0"),
+        value("vx", "0.5"),
+        value("normal_penalty", "1.8e11"),
+        value("friction", "0.3"),
+        value("damping", "0.2"),
+        value("margin", "0.001"),
+        value("depth_limit", "0.001"),
+        value("wall_z", "-0.0076"),
+        value("wall_vz", "0.0"),
+    )
+}
+
+/// Every numeric field at every extreme (all 224 combinations): the scene is refused, or
+/// it builds and runs its first steps (at most 300), or stops with an error, never
+/// panicking, and a run that finishes its steps holds finite positions.
+#[test]
+fn extreme_values_are_refused_or_run_without_panic() {
+    let mut failures = Vec::new();
+    for k in 0..FIELDS.len() {
+        for value in EXTREMES {
+            let text = extreme_scene(k, value);
+            let outcome = std::panic::catch_unwind(|| {
+                let Ok(scene) = Scene::from_toml_str(&text, "scene.toml") else {
+                    return true;
+                };
+                let Ok(mut sim) = scene.build() else {
+                    return true;
+                };
+                let steps = fdem_solver::step_count(scene.simulation.duration, sim.dt()).min(300);
+                for _ in 0..steps {
+                    if sim.advance().is_err() {
+                        return true;
+                    }
+                }
+                sim.state()
+                    .positions
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite())
+            });
+            match outcome {
+                Ok(true) => {}
+                Ok(false) => failures.push(format!("{} = {value}: non-finite state", FIELDS[k])),
+                Err(_) => failures.push(format!("{} = {value}: panicked", FIELDS[k])),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
