@@ -104,6 +104,13 @@ pub fn deflection_estimate(inputs: DeflectionInputs, threshold: f64) -> Deflecti
     }
 }
 
+/// The mean control area (m^2) of a surface node of `template` (a unit-diameter mesh)
+/// scaled to `diameter`: the `A` of [`DeflectionInputs::node_area`].
+pub fn mean_node_area(template: &fdem_mesh::TetMesh, diameter: f64) -> f64 {
+    let surface = &template.surface;
+    diameter * diameter * surface.area() / surface.nodes.len().max(1) as f64
+}
+
 /// The mean normal contact force (N) in a packing of solid fraction `phi` and
 /// coordination `z` under a mean stress `sigma` (Pa), for particles of diameter `d`
 /// (m): Love-Weber's `sigma = phi z <f> / (pi d^2)` solved for `<f>`.

@@ -5,6 +5,7 @@
 
 use crate::SolverError;
 use crate::scene::{ParticleSection, WallSection, WallType};
+use fdem_core::geometry::{distance, dot, norm, scale, sub, triangle_area_vector};
 use fdem_mesh::TetMesh;
 
 /// The radius of the largest ball about the template's centre (the origin) inside its
@@ -18,12 +19,8 @@ pub fn inscribed_radius(template: &TetMesh) -> f64 {
         .triangles
         .iter()
         .map(|&[a, b, c]| {
-            let (p, q, r) = (x[a], x[b], x[c]);
-            let u = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-            let v = [r[0] - p[0], r[1] - p[1], r[2] - p[2]];
-            let n = fdem_core::geometry::cross(u, v);
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            ((n[0] * p[0] + n[1] * p[1] + n[2] * p[2]) / len).abs()
+            let n = triangle_area_vector(x[a], x[b], x[c]);
+            (dot(n, x[a]) / norm(n)).abs()
         })
         .fold(f64::INFINITY, f64::min)
 }
@@ -46,9 +43,7 @@ pub fn check(
     for (k, &i) in order.iter().enumerate() {
         let right = particles[i].center[0] + radii[i];
         for &j in order[k + 1..].iter().take_while(|&&j| left(j) <= right) {
-            let (a, b) = (particles[i].center, particles[j].center);
-            let dist =
-                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            let dist = distance(particles[i].center, particles[j].center);
             let overlap = radii[i] + radii[j] - dist;
             if overlap > limit {
                 let (i, j) = (i.min(j), i.max(j));
@@ -87,24 +82,18 @@ pub fn check(
 /// `None` for a wall without its keys (refused elsewhere).
 fn inside_distance(wall: &WallSection, x: [f64; 3]) -> Option<f64> {
     let unit = |v: [f64; 3]| {
-        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        (n > 0.0).then(|| v.map(|c| c / n))
+        let n = norm(v);
+        (n > 0.0).then(|| scale(v, 1.0 / n))
     };
     match wall.kind {
         WallType::Plane => {
             let (p, n) = (wall.point?, unit(wall.normal?)?);
-            Some((x[0] - p[0]) * n[0] + (x[1] - p[1]) * n[1] + (x[2] - p[2]) * n[2])
+            Some(dot(sub(x, p), n))
         }
         WallType::Cylinder => {
             let (p, a, r) = (wall.axis_point?, unit(wall.axis?)?, wall.radius?);
-            let d = [x[0] - p[0], x[1] - p[1], x[2] - p[2]];
-            let along = d[0] * a[0] + d[1] * a[1] + d[2] * a[2];
-            let radial = [
-                d[0] - along * a[0],
-                d[1] - along * a[1],
-                d[2] - along * a[2],
-            ];
-            Some(r - (radial[0].powi(2) + radial[1].powi(2) + radial[2].powi(2)).sqrt())
+            let d = sub(x, p);
+            Some(r - norm(sub(d, scale(a, dot(d, a)))))
         }
     }
 }

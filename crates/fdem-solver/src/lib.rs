@@ -33,7 +33,7 @@ pub mod toml_input;
 
 pub use auto_model::{
     DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, PatchRegime, deflection_estimate,
-    mean_contact_force,
+    mean_contact_force, mean_node_area,
 };
 pub use body::{Body, BodyKind, BodyMotion, Connectivity};
 pub use contact::ContactForces;

@@ -12,7 +12,10 @@ use crate::toml_input::{
     Number, axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
     positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
 };
-use crate::{DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, deflection_estimate};
+use crate::{
+    DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, deflection_estimate,
+    mean_node_area,
+};
 use fdem_contact::ContactParams;
 use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
@@ -774,15 +777,13 @@ impl Scene {
                 "a particle has model = \"auto\" but the scene has no [auto] table".into(),
             )
         })?;
-        let surface = &template.surface;
-        let node_area = diameter * diameter * surface.area() / surface.nodes.len().max(1) as f64;
         Ok(deflection_estimate(
             DeflectionInputs {
                 diameter,
                 youngs_modulus: self.material.youngs_modulus,
                 poisson_ratio: self.material.poisson_ratio,
                 normal_penalty: self.contact_params().normal_penalty,
-                node_area,
+                node_area: mean_node_area(template, diameter),
                 contact_force: auto.contact_force,
             },
             auto.threshold,

@@ -6,7 +6,7 @@ use crate::{SpecimenSpec, TriaxialError};
 use fdem_mesh::{SphereSpec, sphere_mesh};
 use fdem_solver::{
     DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, ParticleModel,
-    deflection_estimate, mean_contact_force,
+    deflection_estimate, mean_contact_force, mean_node_area,
 };
 
 /// Contacts per particle assumed by the `auto` model's expected contact force: the low
@@ -301,8 +301,6 @@ impl SpecimenSpec {
         template: &fdem_mesh::TetMesh,
     ) -> Result<DeflectionEstimate, TriaxialError> {
         let simulated = self.simulated()?;
-        let surface = &template.surface;
-        let node_area = d * d * surface.area() / surface.nodes.len().max(1) as f64;
         let force = mean_contact_force(self.confining_pressure, d, phi, AUTO_COORDINATION);
         Ok(deflection_estimate(
             DeflectionInputs {
@@ -310,7 +308,7 @@ impl SpecimenSpec {
                 youngs_modulus: simulated.material.youngs_modulus,
                 poisson_ratio: simulated.material.poisson_ratio,
                 normal_penalty: simulated.contact.normal_penalty,
-                node_area,
+                node_area: mean_node_area(template, d),
                 contact_force: force,
             },
             self.auto_threshold.unwrap_or(DEFAULT_AUTO_THRESHOLD),

@@ -34,7 +34,7 @@ impl PreparedSpecimen {
     pub fn in_model(&self, model: ParticleModel) -> Result<PreparedSpecimen, TriaxialError> {
         let mut spec = self.spec.clone();
         spec.model = model;
-        spec.validate(&spec.name.clone())?;
+        spec.validate(&spec.name)?;
         let (dt, _, _) = specimen_time_step(&spec)?;
         let target = PreparedSpecimen {
             spec,
