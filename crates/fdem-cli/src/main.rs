@@ -59,11 +59,15 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Scale(args) => commands::scale::run(&args),
         Command::Mesh(args) => commands::mesh::run(&args),
-        Command::Run(args) => commands::run::run(&args),
+        Command::Run(args) => commands::on_pool(args.threads, || commands::run::run(&args)),
         Command::Micro(args) => commands::micro::run(&args),
         Command::Coarsen(args) => commands::coarsen::run(&args),
-        Command::Specimen(args) => commands::specimen::run(&args),
-        Command::Triaxial(args) => commands::triaxial::run(&args),
+        Command::Specimen(args) => {
+            commands::on_pool(args.threads, || commands::specimen::run(&args))
+        }
+        Command::Triaxial(args) => {
+            commands::on_pool(args.threads, || commands::triaxial::run(&args))
+        }
         Command::Compare(args) => commands::compare::run(&args),
     };
     match result {

@@ -481,6 +481,10 @@ impl Simulation {
     /// `a(n+1) = f(x(n+1), v(n+1/2)) / m`, `v(n+1) = v(n+1/2) + dt/2 a(n+1)`:
     /// kick and drift, forces (with the constraints' pass), booking of work and
     /// dissipation, kick, guard.
+    ///
+    /// A step opens several parallel regions of the rayon pool. Call it from a worker of
+    /// the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
+    /// does: from any other thread every region is a hand-over to the pool and a wake-up.
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
         kick_and_drift(&mut self.state, half, dt);

@@ -38,9 +38,24 @@ pub fn positive_number(flag: &str, text: &str) -> anyhow::Result<f64> {
 /// low enough that a typo does not spawn thousands of threads.
 pub const MAX_THREADS: usize = 1024;
 
+/// Runs a command on a worker of the global pool, with `--threads` workers (all cores
+/// when it is not given).
+///
+/// A thread outside the pool that opens a parallel region hands the work over and sleeps
+/// on a lock until it is done, at every region; a time step opens several. On a worker,
+/// a region is a push onto its own queue that the others steal from, and the worker takes
+/// part in the work (docs/PERFORMANCE.md, "One team for the whole run").
+pub fn on_pool<T: Send>(
+    threads: Option<usize>,
+    command: impl FnOnce() -> anyhow::Result<T> + Send,
+) -> anyhow::Result<T> {
+    set_threads(threads)?;
+    rayon::scope(|_| command())
+}
+
 /// Sets the number of worker threads of the global pool from `--threads` (all cores when
 /// it is not given).
-pub fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(threads) = threads {
         anyhow::ensure!(threads > 0, "--threads must be at least 1");
         anyhow::ensure!(

@@ -21,7 +21,7 @@ pub struct RunArgs {
     contacts: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
-    threads: Option<usize>,
+    pub(crate) threads: Option<usize>,
 }
 
 /// Progress on stderr: the plan up front, a bar on a terminal, nothing more otherwise.
@@ -56,7 +56,6 @@ impl Observer for Progress {
 
 /// Loads, runs and reports.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
-    super::set_threads(args.threads)?;
     // `run_scene` builds (and so validates) everything before it creates any output.
     let scene = Scene::load(&args.scene)?;
     // Every `auto` decision, once per kind of particle.

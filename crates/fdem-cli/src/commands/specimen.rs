@@ -94,7 +94,7 @@ pub struct SpecimenArgs {
     json: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
-    threads: Option<usize>,
+    pub(crate) threads: Option<usize>,
 }
 
 /// A progress bar over `planned_steps` steps of a phase, with elapsed time and estimate.
@@ -350,7 +350,6 @@ fn summary_json(file: &std::path::Path, s: &PreparedSpecimen) -> anyhow::Result<
 
 /// Runs `fdem specimen`.
 pub fn run(args: &SpecimenArgs) -> anyhow::Result<()> {
-    super::set_threads(args.threads)?;
     if args.list {
         return list(args.json);
     }

@@ -61,7 +61,7 @@ pub struct TriaxialArgs {
     vtk: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
-    threads: Option<usize>,
+    pub(crate) threads: Option<usize>,
 }
 
 /// The definition named by --test, --config or --quick with the overrides applied.
@@ -251,7 +251,6 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
 
 /// Prepares (or reuses), tests and reports.
 pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
-    super::set_threads(args.threads)?;
     if let Some(strain) = args.strain
         && !(strain > 0.0 && strain <= fdem_triaxial::MAX_TARGET_STRAIN)
     {
