@@ -4,9 +4,10 @@ use nalgebra::DMatrix;
 
 use crate::ElasticError;
 use crate::kernels::{
-    EDGES, Lame, TetRef, element_time_step, reference_stiffness, tet4_add_forces, tet4_energy,
-    tet4_stress, tet10_add_forces, tet10_energy, tet10_stress,
+    EDGES, Lame, TetRef, element_time_step, reference_stiffness, tet4_energy, tet4_stress,
+    tet10_add_forces, tet10_energy, tet10_stress,
 };
+use crate::lanes::{Path, Tet4Block, add_block_forces};
 use crate::mat3::{Mat3, cofactor, det, dot, sub, transpose};
 use crate::material::Material;
 
@@ -70,7 +71,8 @@ enum Elements {
 /// `Send + Sync`; bodies can be processed in parallel.
 ///
 /// Element storage is compact and contiguous: node ids as `u32` plus three gradient
-/// vectors and the volume, 96 bytes per linear and 120 bytes per quadratic element.
+/// vectors and the volume, 96 bytes per linear and 120 bytes per quadratic element; linear
+/// elements are kept a second time in the lane kernel's blocks (98 bytes per element).
 #[derive(Debug, Clone)]
 pub struct ElementSet {
     material: Material,
@@ -78,6 +80,8 @@ pub struct ElementSet {
     kind: TetKind,
     n_nodes: usize,
     elements: Elements,
+    /// The linear elements again, in blocks for the lane kernel (empty for 10-node sets).
+    blocks: Vec<Tet4Block>,
     time_steps: Vec<f64>,
     stable_time_step: f64,
 }
@@ -151,12 +155,17 @@ impl ElementSet {
             }
         };
         let stable_time_step = time_steps.iter().copied().fold(f64::INFINITY, f64::min);
+        let blocks = match &elements {
+            Elements::Linear(els) => Tet4Block::blocks(els),
+            Elements::Quadratic(_) => Vec::new(),
+        };
         Ok(Self {
             material: *material,
             lame,
             kind,
             n_nodes,
             elements,
+            blocks,
             time_steps,
             stable_time_step,
         })
@@ -353,9 +362,14 @@ impl ElementSet {
         self.check_len("forces", forces.len())?;
         match &self.elements {
             Elements::Linear(els) => {
-                for (e, el) in els.iter().enumerate() {
-                    tet4_add_forces(el, self.lame, positions, forces, e)?;
-                }
+                add_block_forces(
+                    Path::best(),
+                    &self.blocks,
+                    els,
+                    self.lame,
+                    positions,
+                    forces,
+                )?;
             }
             Elements::Quadratic(els) => {
                 for (e, el) in els.iter().enumerate() {
@@ -430,7 +444,7 @@ impl ElementSet {
 }
 
 /// Validates connectivity and geometry and computes the reference data of every element.
-fn build<const N: usize>(
+pub(crate) fn build<const N: usize>(
     x: &[[f64; 3]],
     connectivity: &[usize],
 ) -> Result<Vec<TetRef<N>>, ElasticError> {

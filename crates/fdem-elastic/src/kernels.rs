@@ -17,7 +17,8 @@ use nalgebra::SMatrix;
 
 use crate::ElasticError;
 use crate::mat3::{
-    IDENTITY, Mat3, add_outer, cofactor, cross, det, dot, mul, mul_tn, mul_vec, sub, transpose,
+    IDENTITY, Mat3, Real, add_outer, cofactor, cross, det, dot, mul, mul_tn, mul_vec, scale, sub,
+    transpose,
 };
 use crate::material::Material;
 use crate::polar::polar_rotation_positive;
@@ -77,12 +78,12 @@ fn rotation(f: &Mat3, det_f: f64, element: usize) -> Result<Mat3, ElasticError> 
 
 /// `eps = sym(R^T F) - I`, the co-rotated small strain.
 #[inline(always)]
-fn corotated_strain(r: &Mat3, f: &Mat3) -> Mat3 {
+pub(crate) fn corotated_strain<T: Real>(r: &[[T; 3]; 3], f: &[[T; 3]; 3]) -> [[T; 3]; 3] {
     let h = mul_tn(r, f);
-    let mut e = [[0.0; 3]; 3];
+    let mut e = [[T::ZERO; 3]; 3];
     for i in 0..3 {
         for j in 0..3 {
-            e[i][j] = 0.5 * (h[i][j] + h[j][i]) - IDENTITY[i][j];
+            e[i][j] = T::splat(0.5) * (h[i][j] + h[j][i]) - T::splat(IDENTITY[i][j]);
         }
     }
     e
@@ -92,18 +93,6 @@ fn corotated_strain(r: &Mat3, f: &Mat3) -> Mat3 {
 #[inline(always)]
 fn ddot(a: &Mat3, b: &Mat3) -> f64 {
     dot(a[0], b[0]) + dot(a[1], b[1]) + dot(a[2], b[2])
-}
-
-/// Scales a matrix.
-#[inline(always)]
-fn scale(a: &Mat3, s: f64) -> Mat3 {
-    let mut c = *a;
-    for row in &mut c {
-        for v in row.iter_mut() {
-            *v *= s;
-        }
-    }
-    c
 }
 
 /// `R S R^T` as Voigt `(xx, yy, zz, yz, xz, xy)`.
@@ -117,26 +106,74 @@ fn rotate_to_voigt(r: &Mat3, s: &Mat3) -> [f64; 6] {
 // Linear 4-node tetrahedron.
 // ----------------------------------------------------------------------------------------
 
-/// Rotation and co-rotated strain of a linear tetrahedron.
-/// `F = sum_{a=1..3} (x_a - x_0) (x) g_a` (= `D_s D_m^{-1}`; uses `sum_a g_a = 0`).
+/// `F = sum_{a=1..3} (x_a - x_0) (x) g_a` (= `D_s D_m^{-1}`; uses `sum_a g_a = 0`), from
+/// the edge vectors `d_a = x_a - x_0` and the gradients `g_1, g_2, g_3`.
 #[inline(always)]
-pub(crate) fn tet4_kinematics(
+pub(crate) fn tet4_gradient<T: Real>(d: &[[T; 3]; 3], grad: &[[T; 3]; 3]) -> [[T; 3]; 3] {
+    let mut f = [[T::ZERO; 3]; 3];
+    add_outer(&mut f, d[0], grad[0]);
+    add_outer(&mut f, d[1], grad[1]);
+    add_outer(&mut f, d[2], grad[2]);
+    f
+}
+
+/// The node forces of a linear tetrahedron with deformation gradient `f`, rotation `r`,
+/// gradients `g_1..g_3` and rest volume `volume`: `P = V R sigma`, `f_a = -P g_a`
+/// (eq. C2 with constant `P`), `f_0 = -(f_1 + f_2 + f_3)`.
+#[inline(always)]
+pub(crate) fn tet4_forces<T: Real>(
+    r: &[[T; 3]; 3],
+    f: &[[T; 3]; 3],
+    grad: &[[T; 3]; 3],
+    volume: T,
+    lambda: T,
+    mu: T,
+) -> [[T; 3]; 4] {
+    let eps = corotated_strain(r, f);
+    let s = Material::stress(lambda, mu, &eps);
+    let p = scale(&mul(r, &s), -volume);
+    let f1 = mul_vec(&p, grad[0]);
+    let f2 = mul_vec(&p, grad[1]);
+    let f3 = mul_vec(&p, grad[2]);
+    let f0 = [
+        -(f1[0] + f2[0] + f3[0]),
+        -(f1[1] + f2[1] + f3[1]),
+        -(f1[2] + f2[2] + f3[2]),
+    ];
+    [f0, f1, f2, f3]
+}
+
+/// Deformation gradient and rotation of a linear tetrahedron.
+#[inline(always)]
+pub(crate) fn tet4_frame(
     el: &TetRef<4>,
     x: &[[f64; 3]],
     element: usize,
 ) -> Result<(Mat3, Mat3), ElasticError> {
     let [n0, n1, n2, n3] = el.nodes;
     let x0 = x[n0 as usize];
-    let mut f = [[0.0; 3]; 3];
-    add_outer(&mut f, sub(x[n1 as usize], x0), el.grad[0]);
-    add_outer(&mut f, sub(x[n2 as usize], x0), el.grad[1]);
-    add_outer(&mut f, sub(x[n3 as usize], x0), el.grad[2]);
+    let d = [
+        sub(x[n1 as usize], x0),
+        sub(x[n2 as usize], x0),
+        sub(x[n3 as usize], x0),
+    ];
+    let f = tet4_gradient(&d, &el.grad);
     let r = rotation(&f, det(&f), element)?;
+    Ok((f, r))
+}
+
+/// Rotation and co-rotated strain of a linear tetrahedron.
+#[inline(always)]
+pub(crate) fn tet4_kinematics(
+    el: &TetRef<4>,
+    x: &[[f64; 3]],
+    element: usize,
+) -> Result<(Mat3, Mat3), ElasticError> {
+    let (f, r) = tet4_frame(el, x, element)?;
     Ok((r, corotated_strain(&r, &f)))
 }
 
-/// Adds the elastic forces of one linear tetrahedron: `P = V R sigma`, `f_a = -P g_a`
-/// (eq. C2 with constant `P`), `f_0 = -(f_1 + f_2 + f_3)`.
+/// Adds the elastic forces of one linear tetrahedron ([`tet4_forces`]).
 #[inline(always)]
 pub(crate) fn tet4_add_forces(
     el: &TetRef<4>,
@@ -145,24 +182,15 @@ pub(crate) fn tet4_add_forces(
     forces: &mut [[f64; 3]],
     element: usize,
 ) -> Result<(), ElasticError> {
-    let (r, eps) = tet4_kinematics(el, x, element)?;
-    let s = Material::stress(lame.lambda, lame.mu, &eps);
-    let p = scale(&mul(&r, &s), -el.volume);
-    let f1 = mul_vec(&p, el.grad[0]);
-    let f2 = mul_vec(&p, el.grad[1]);
-    let f3 = mul_vec(&p, el.grad[2]);
-    let f0 = [
-        -(f1[0] + f2[0] + f3[0]),
-        -(f1[1] + f2[1] + f3[1]),
-        -(f1[2] + f2[2] + f3[2]),
-    ];
-    scatter(&el.nodes, [f0, f1, f2, f3], forces);
+    let (f, r) = tet4_frame(el, x, element)?;
+    let fa = tet4_forces(&r, &f, &el.grad, el.volume, lame.lambda, lame.mu);
+    scatter(&el.nodes, fa, forces);
     Ok(())
 }
 
 /// Adds the element's node forces `f` to the body's `forces` at its nodes.
 #[inline(always)]
-fn scatter<const N: usize>(nodes: &[u32; N], f: [[f64; 3]; N], forces: &mut [[f64; 3]]) {
+pub(crate) fn scatter<const N: usize>(nodes: &[u32; N], f: [[f64; 3]; N], forces: &mut [[f64; 3]]) {
     for (n, fa) in nodes.iter().zip(f) {
         let t = &mut forces[*n as usize];
         t[0] += fa[0];

@@ -51,6 +51,7 @@ mod assembled_step;
 mod element_set;
 mod error;
 mod kernels;
+mod lanes;
 mod mat3;
 mod material;
 pub mod polar;

@@ -1,5 +1,6 @@
 //! Isotropic linear elastic material (docs/MODEL.md section 3).
 
+use crate::mat3::Real;
 use serde::{Deserialize, Serialize};
 
 use crate::ElasticError;
@@ -94,12 +95,13 @@ impl Material {
     /// Local linear-elastic stress `sigma = lambda tr(eps) I + 2 G eps` (docs/MODEL.md eq. 4-5 in
     /// total form) for a symmetric strain given as a full matrix.
     #[inline(always)]
-    pub(crate) fn stress(lambda: f64, mu: f64, eps: &crate::mat3::Mat3) -> crate::mat3::Mat3 {
+    pub(crate) fn stress<T: Real>(lambda: T, mu: T, eps: &[[T; 3]; 3]) -> [[T; 3]; 3] {
         let tr = eps[0][0] + eps[1][1] + eps[2][2];
-        let mut s = [[0.0; 3]; 3];
+        let two_mu = T::splat(2.0) * mu;
+        let mut s = [[T::ZERO; 3]; 3];
         for i in 0..3 {
             for j in 0..3 {
-                s[i][j] = 2.0 * mu * eps[i][j];
+                s[i][j] = two_mu * eps[i][j];
             }
             s[i][i] += lambda * tr;
         }

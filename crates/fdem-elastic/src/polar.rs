@@ -36,12 +36,12 @@ use crate::mat3::{IDENTITY, Mat3, cofactor, det, gram, mul, norm2};
 
 /// Switch from scaled Newton to Newton–Schulz below this value of `||X^T X - I||_F^2`
 /// (`(1/4)^2`).
-const NS_REGION2: f64 = 0.0625;
+pub(crate) const NS_REGION2: f64 = 0.0625;
 /// Final Newton–Schulz step once `||X^T X - I||_F^2` is below this (`(1e-7)^2`).
-const CONVERGED2: f64 = 1e-14;
+pub(crate) const CONVERGED2: f64 = 1e-14;
 /// Iteration caps (never reached for finite `F` with `det F > 0` in tests; a safety net).
 const MAX_NEWTON: usize = 100;
-const MAX_NS: usize = 20;
+pub(crate) const MAX_NS: usize = 20;
 
 /// `||X^T X - I||_F^2` and `X^T X`.
 #[inline(always)]

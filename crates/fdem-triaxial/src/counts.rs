@@ -64,9 +64,10 @@ pub struct Counts {
 /// mass and inverse mass; docs/PERFORMANCE.md, "Memory").
 const BYTES_PER_NODE: u64 = 112;
 
-/// Bytes per element: the kernel's record, its bound and the connectivity (linear,
-/// quadratic; docs/PERFORMANCE.md, "Memory").
-const BYTES_PER_ELEMENT: [u64; 2] = [136, 208];
+/// Bytes per element: the kernel's record, its bound and the connectivity, and for linear
+/// elements their copy in the lane kernel's blocks (linear, quadratic; docs/PERFORMANCE.md,
+/// "Memory").
+const BYTES_PER_ELEMENT: [u64; 2] = [234, 208];
 
 /// Bytes per surface node for the contact model and the rest of a run (candidates,
 /// history, scratch), rounded up from a measured whole-process peak (docs/PERFORMANCE.md,

@@ -1,0 +1,480 @@
+//! Linear tetrahedra several at a time: blocks of [`LANES`] elements whose reference data
+//! is stored lane by lane (structure of arrays within a block), evaluated with the
+//! operations of [`crate::kernels`] on vectors of lanes.
+//!
+//! # Same result as one element at a time
+//! Every lane runs the operations of the one-element kernel in the same order: the 3x3
+//! products, the strain, the stress and the forces are the same generic functions
+//! ([`crate::mat3::Real`]), and the Newton–Schulz iteration of [`crate::polar`] runs
+//! per lane until that lane has taken the step the one-element iteration stops after
+//! (a lane that is done keeps its value while the others go on). Rust never fuses a
+//! multiply and an add unless told to, so the vector code and the scalar code round
+//! alike, and the forces are added to the nodes element by element in element order. So
+//! the forces are identical to the last bit to those of the one-element kernel, on every
+//! code path (tested).
+//!
+//! # Fallback
+//! A block with an element that is inverted, flat or not finite, or whose stretch needs
+//! the scaled-Newton phase of the polar decomposition (far outside elastic strains), is
+//! evaluated one element at a time instead, which also names the failing element. The
+//! fallback happens before the block adds anything, so it changes nothing.
+//!
+//! # Code paths
+//! The same source is compiled for the baseline instruction set and, on x86-64, with
+//! AVX2 and with AVX-512 enabled; the widest one the processor has is chosen at run time
+//! (no build flag needed).
+
+// Lane loops index several arrays at once: an index reads best.
+#![allow(clippy::needless_range_loop)]
+
+use std::ops::{Add, AddAssign, Mul, Neg, Sub};
+
+use crate::ElasticError;
+use crate::kernels::{Lame, TetRef, scatter, tet4_add_forces, tet4_forces, tet4_gradient};
+use crate::mat3::{IDENTITY, Real, det, gram, mul};
+use crate::polar::{CONVERGED2, MAX_NS, NS_REGION2};
+
+/// Elements per block: eight `f64` lanes, one AVX-512 register, two AVX2 registers.
+pub(crate) const LANES: usize = 8;
+
+/// A vector of `f64` lanes with element-wise operations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct V(pub(crate) [f64; LANES]);
+
+impl V {
+    #[inline(always)]
+    fn zip(self, o: V, op: impl Fn(f64, f64) -> f64) -> V {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            r[l] = op(self.0[l], o.0[l]);
+        }
+        V(r)
+    }
+}
+
+impl Add for V {
+    type Output = V;
+    #[inline(always)]
+    fn add(self, o: V) -> V {
+        self.zip(o, |a, b| a + b)
+    }
+}
+
+impl Sub for V {
+    type Output = V;
+    #[inline(always)]
+    fn sub(self, o: V) -> V {
+        self.zip(o, |a, b| a - b)
+    }
+}
+
+impl Mul for V {
+    type Output = V;
+    #[inline(always)]
+    fn mul(self, o: V) -> V {
+        self.zip(o, |a, b| a * b)
+    }
+}
+
+impl Neg for V {
+    type Output = V;
+    #[inline(always)]
+    fn neg(self) -> V {
+        let mut r = self.0;
+        for v in &mut r {
+            *v = -*v;
+        }
+        V(r)
+    }
+}
+
+impl AddAssign for V {
+    #[inline(always)]
+    fn add_assign(&mut self, o: V) {
+        *self = *self + o;
+    }
+}
+
+impl Real for V {
+    const ZERO: V = V([0.0; LANES]);
+    #[inline(always)]
+    fn splat(value: f64) -> V {
+        V([value; LANES])
+    }
+}
+
+type M = [[V; 3]; 3];
+
+/// Reference data of up to [`LANES`] linear elements, lane by lane. Unused lanes repeat
+/// lane 0 (so that they compute finite values) and are never added to the nodes.
+#[derive(Clone, Debug)]
+pub(crate) struct Tet4Block {
+    /// Node ids of each lane's element.
+    nodes: [[u32; 4]; LANES],
+    /// `grad[a][k]`: component `k` of `g_(a+1)`, per lane.
+    grad: M,
+    /// Rest volumes.
+    volume: V,
+    /// Id of the element in lane 0; lane `l` holds element `first + l`.
+    first: usize,
+    /// Lanes in use.
+    len: usize,
+}
+
+impl Tet4Block {
+    /// The blocks of `elements`, in order: [`LANES`] per block, the last one partial.
+    pub(crate) fn blocks(elements: &[TetRef<4>]) -> Vec<Tet4Block> {
+        elements
+            .chunks(LANES)
+            .enumerate()
+            .map(|(b, els)| {
+                let mut block = Tet4Block {
+                    nodes: [[0; 4]; LANES],
+                    grad: [[V::ZERO; 3]; 3],
+                    volume: V::ZERO,
+                    first: b * LANES,
+                    len: els.len(),
+                };
+                for l in 0..LANES {
+                    let el = els.get(l).unwrap_or(&els[0]);
+                    block.nodes[l] = el.nodes;
+                    block.volume.0[l] = el.volume;
+                    for a in 0..3 {
+                        for k in 0..3 {
+                            block.grad[a][k].0[l] = el.grad[a][k];
+                        }
+                    }
+                }
+                block
+            })
+            .collect()
+    }
+}
+
+/// Which compilation of the block kernel to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Path {
+    /// The baseline instruction set of the target.
+    Portable,
+    /// x86-64 with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    /// x86-64 with AVX-512 (foundation).
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl Path {
+    /// The widest path this processor runs.
+    pub(crate) fn best() -> Path {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Path::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Path::Avx2;
+            }
+        }
+        Path::Portable
+    }
+
+    /// Every path this processor runs (for tests).
+    #[cfg(test)]
+    pub(crate) fn available() -> Vec<Path> {
+        let mut paths = vec![Path::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                paths.push(Path::Avx2);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                paths.push(Path::Avx512);
+            }
+        }
+        paths
+    }
+}
+
+/// Adds the elastic forces of `blocks` (the blocks of `elements`) to `forces`, on `path`.
+/// Same contract and errors as the one-element kernel, element by element.
+pub(crate) fn add_block_forces(
+    path: Path,
+    blocks: &[Tet4Block],
+    elements: &[TetRef<4>],
+    lame: Lame,
+    x: &[[f64; 3]],
+    forces: &mut [[f64; 3]],
+) -> Result<(), ElasticError> {
+    match path {
+        Path::Portable => add_all(blocks, elements, lame, x, forces),
+        // SAFETY: `Path::best` and `Path::available` offer these paths only when the
+        // processor reports the feature.
+        #[cfg(target_arch = "x86_64")]
+        Path::Avx2 => unsafe { add_all_avx2(blocks, elements, lame, x, forces) },
+        #[cfg(target_arch = "x86_64")]
+        Path::Avx512 => unsafe { add_all_avx512(blocks, elements, lame, x, forces) },
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn add_all_avx2(
+    blocks: &[Tet4Block],
+    elements: &[TetRef<4>],
+    lame: Lame,
+    x: &[[f64; 3]],
+    forces: &mut [[f64; 3]],
+) -> Result<(), ElasticError> {
+    add_all(blocks, elements, lame, x, forces)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn add_all_avx512(
+    blocks: &[Tet4Block],
+    elements: &[TetRef<4>],
+    lame: Lame,
+    x: &[[f64; 3]],
+    forces: &mut [[f64; 3]],
+) -> Result<(), ElasticError> {
+    add_all(blocks, elements, lame, x, forces)
+}
+
+/// Every block, each one at a time when it cannot be done in lanes.
+#[inline(always)]
+fn add_all(
+    blocks: &[Tet4Block],
+    elements: &[TetRef<4>],
+    lame: Lame,
+    x: &[[f64; 3]],
+    forces: &mut [[f64; 3]],
+) -> Result<(), ElasticError> {
+    let (lambda, mu) = (V::splat(lame.lambda), V::splat(lame.mu));
+    for b in blocks {
+        match block_forces(b, x, lambda, mu) {
+            Some(fa) => {
+                for l in 0..b.len {
+                    let mut lane = [[0.0; 3]; 4];
+                    for (a, node) in fa.iter().enumerate() {
+                        for k in 0..3 {
+                            lane[a][k] = node[k].0[l];
+                        }
+                    }
+                    scatter(&b.nodes[l], lane, forces);
+                }
+            }
+            None => {
+                for e in b.first..b.first + b.len {
+                    tet4_add_forces(&elements[e], lame, x, forces, e)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The node forces of every lane of `b` ([`tet4_forces`]); `None` when a lane needs the
+/// one-element kernel (see the module documentation).
+#[inline(always)]
+fn block_forces(b: &Tet4Block, x: &[[f64; 3]], lambda: V, mu: V) -> Option<[[V; 3]; 4]> {
+    // Edge vectors `d_a = x_a - x_0`, lane by lane.
+    let mut d: M = [[V::ZERO; 3]; 3];
+    for l in 0..LANES {
+        let n = b.nodes[l];
+        let x0 = x[n[0] as usize];
+        for a in 0..3 {
+            let xa = x[n[a + 1] as usize];
+            for k in 0..3 {
+                d[a][k].0[l] = xa[k] - x0[k];
+            }
+        }
+    }
+    let f = tet4_gradient(&d, &b.grad);
+    let det_f = det(&f);
+    if !det_f.0.iter().all(|v| v.is_finite() && *v > 0.0) {
+        return None;
+    }
+    let r = polar_rotation_lanes(&f)?;
+    Some(tet4_forces(&r, &f, &b.grad, b.volume, lambda, mu))
+}
+
+/// `||X^T X - I||_F^2` and `X^T X`, per lane (as `polar::orthogonality_defect`).
+#[inline(always)]
+fn orthogonality_defect(x: &M) -> (V, M) {
+    let m = gram(x);
+    let mut r2 = V::ZERO;
+    for i in 0..3 {
+        for j in 0..3 {
+            let d = m[i][j] - V::splat(IDENTITY[i][j]);
+            r2 += d * d;
+        }
+    }
+    (r2, m)
+}
+
+/// The Newton–Schulz phase of [`crate::polar::polar_rotation`], lane by lane: each lane
+/// stops after the step taken below the convergence threshold, exactly as the one-matrix
+/// iteration does. `None` when a lane starts outside the Newton–Schulz region or leaves it
+/// (the one-element kernel then handles the block).
+#[inline(always)]
+fn polar_rotation_lanes(f: &M) -> Option<M> {
+    let mut x = *f;
+    let (mut r2, mut m) = orthogonality_defect(&x);
+    let mut active = [true; LANES];
+    for l in 0..LANES {
+        let v = r2.0[l];
+        if v.is_nan() || v >= NS_REGION2 {
+            return None;
+        }
+    }
+    for _ in 0..MAX_NS {
+        let mut t = m;
+        for i in 0..3 {
+            for j in 0..3 {
+                t[i][j] = V::splat(0.5) * (V::splat(3.0 * IDENTITY[i][j]) - t[i][j]);
+            }
+        }
+        let next = mul(&x, &t);
+        for i in 0..3 {
+            for j in 0..3 {
+                for l in 0..LANES {
+                    if active[l] {
+                        x[i][j].0[l] = next[i][j].0[l];
+                    }
+                }
+            }
+        }
+        for l in 0..LANES {
+            active[l] &= r2.0[l] >= CONVERGED2;
+        }
+        if !active.iter().any(|&a| a) {
+            return Some(x);
+        }
+        let (r2_next, m_next) = orthogonality_defect(&x);
+        for l in 0..LANES {
+            if active[l] {
+                let v = r2_next.0[l];
+                if v.is_nan() || v >= NS_REGION2 {
+                    return None;
+                }
+                r2.0[l] = v;
+                for i in 0..3 {
+                    for j in 0..3 {
+                        m[i][j].0[l] = m_next[i][j].0[l];
+                    }
+                }
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (no dependency needed for test data).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
+        }
+    }
+
+    /// Elements on random nodes, and positions: the rest nodes rotated by up to a half
+    /// turn and strained by up to `strain`; every few elements one strained far beyond
+    /// the Newton–Schulz region, so that blocks also take the fallback.
+    fn case(n_el: usize, strain: f64, seed: u64) -> (Vec<TetRef<4>>, Vec<[f64; 3]>) {
+        let mut g = Lcg(seed);
+        let mut rest = Vec::new();
+        let mut now = Vec::new();
+        let mut els = Vec::new();
+        for e in 0..n_el {
+            let base = rest.len() as u32;
+            let corners = [
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ];
+            let (s, c) = (3.0 * g.next()).sin_cos();
+            let big = if e % 13 == 5 { 0.6 } else { strain };
+            let mut stretch = [[0.0; 3]; 3];
+            for i in 0..3 {
+                for j in 0..3 {
+                    stretch[i][j] = f64::from(u8::from(i == j)) + big * g.next();
+                }
+            }
+            for p in corners {
+                let q = [
+                    p[0] + 0.1 * g.next(),
+                    p[1] + 0.1 * g.next(),
+                    p[2] + 0.1 * g.next(),
+                ];
+                rest.push(q);
+                let u = crate::mat3::mul_vec(&stretch, q);
+                now.push([c * u[0] - s * u[1] + 2.0, s * u[0] + c * u[1], u[2] - 1.0]);
+            }
+            let b = base as usize;
+            els.extend(crate::element_set::build::<4>(&rest, &[b, b + 1, b + 2, b + 3]).unwrap());
+        }
+        (els, now)
+    }
+
+    #[test]
+    fn every_path_gives_the_one_element_forces_to_the_last_bit() {
+        let lame = Lame {
+            lambda: 1.1e10,
+            mu: 1.6e10,
+        };
+        for (strain, seed) in [(1e-5, 1), (1e-4, 2), (1e-3, 3), (3e-2, 4)] {
+            // 61 elements: seven full blocks and a partial one.
+            let (els, x) = case(61, strain, seed);
+            let mut reference = vec![[0.0; 3]; x.len()];
+            for (e, el) in els.iter().enumerate() {
+                tet4_add_forces(el, lame, &x, &mut reference, e).unwrap();
+            }
+            let blocks = Tet4Block::blocks(&els);
+            for path in Path::available() {
+                let mut forces = vec![[0.0; 3]; x.len()];
+                add_block_forces(path, &blocks, &els, lame, &x, &mut forces).unwrap();
+                for (a, b) in forces.iter().zip(&reference) {
+                    for k in 0..3 {
+                        assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_block_holds_eight_elements_in_784_bytes() {
+        // 98 bytes per element (docs/PERFORMANCE.md, "Memory").
+        assert_eq!(std::mem::size_of::<Tet4Block>(), 784);
+    }
+
+    #[test]
+    fn an_inverted_element_is_named_on_every_path() {
+        let lame = Lame {
+            lambda: 1.0,
+            mu: 1.0,
+        };
+        let (els, mut x) = case(20, 1e-4, 9);
+        // Element 11: swap two corners' current positions (det F < 0).
+        x.swap(44, 45);
+        let blocks = Tet4Block::blocks(&els);
+        for path in Path::available() {
+            let mut forces = vec![[0.0; 3]; x.len()];
+            let err = add_block_forces(path, &blocks, &els, lame, &x, &mut forces).unwrap_err();
+            assert!(
+                matches!(err, ElasticError::InvertedElement { element: 11, .. }),
+                "{path:?}: {err}"
+            );
+        }
+    }
+}
