@@ -44,7 +44,7 @@ pub const MAX_THREADS: usize = 1024;
 /// A thread outside the pool that opens a parallel region hands the work over and sleeps
 /// on a lock until it is done, at every region; a time step opens several. On a worker,
 /// a region is a push onto its own queue that the others steal from, and the worker takes
-/// part in the work (docs/PERFORMANCE.md, "One team for the whole run").
+/// part in the work (docs/PERFORMANCE.md, "One team for the whole run, and the lane kernel").
 pub fn on_pool<T: Send>(
     threads: Option<usize>,
     command: impl FnOnce() -> anyhow::Result<T> + Send,
