@@ -217,29 +217,25 @@ pub(crate) fn add_block_forces(
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn add_all_avx2(
-    blocks: &[Tet4Block],
-    elements: &[TetRef<4>],
-    lame: Lame,
-    x: &[[f64; 3]],
-    forces: &mut [[f64; 3]],
-) -> Result<(), ElasticError> {
-    add_all(blocks, elements, lame, x, forces)
+/// [`add_all`] compiled with a target feature enabled (one function per path).
+macro_rules! add_all_with {
+    ($name:ident, $feature:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $feature)]
+        unsafe fn $name(
+            blocks: &[Tet4Block],
+            elements: &[TetRef<4>],
+            lame: Lame,
+            x: &[[f64; 3]],
+            forces: &mut [[f64; 3]],
+        ) -> Result<(), ElasticError> {
+            add_all(blocks, elements, lame, x, forces)
+        }
+    };
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn add_all_avx512(
-    blocks: &[Tet4Block],
-    elements: &[TetRef<4>],
-    lame: Lame,
-    x: &[[f64; 3]],
-    forces: &mut [[f64; 3]],
-) -> Result<(), ElasticError> {
-    add_all(blocks, elements, lame, x, forces)
-}
+add_all_with!(add_all_avx2, "avx2");
+add_all_with!(add_all_avx512, "avx512f");
 
 /// Every block, each one at a time when it cannot be done in lanes.
 #[inline(always)]
