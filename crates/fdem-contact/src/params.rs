@@ -158,7 +158,42 @@ impl ContactParams {
 ///
 /// This is the central-difference stability limit of a damped oscillator of stiffness `k`
 /// (N/m), mass `m` (kg) and damping ratio `beta`; it equals `2 / omega` without damping.
+///
+/// Above critical damping the factor is evaluated as `r / (1 + sqrt(1 + r^2))` with
+/// `r = 1 / beta`, the same number without the cancellation that makes the difference
+/// zero for large `beta` and without `beta^2`, which overflows; up to critical damping the
+/// direct form is kept, so the steps of ordinary runs are unchanged to the last bit.
 pub fn spring_dashpot_time_step(stiffness: f64, mass: f64, damping_ratio: f64) -> f64 {
     let omega = (stiffness / mass).sqrt();
-    2.0 * ((1.0 + damping_ratio * damping_ratio).sqrt() - damping_ratio) / omega
+    let beta = damping_ratio;
+    let factor = if beta > 1.0 {
+        let r = 1.0 / beta;
+        r / (1.0 + (1.0 + r * r).sqrt())
+    } else {
+        (1.0 + beta * beta).sqrt() - beta
+    };
+    2.0 * factor / omega
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spring_dashpot_time_step;
+
+    /// Large damping ratios give the small positive step of the closed form, not zero
+    /// (cancellation) or infinity (overflow of `beta^2`): `2 (sqrt(1 + b^2) - b) ~ 1 / b`.
+    #[test]
+    fn heavy_damping_gives_a_small_positive_step() {
+        for beta in [1e4, 1e8, 1e12, 1e200, 1e300, f64::MAX] {
+            let dt = spring_dashpot_time_step(1.0, 1.0, beta);
+            assert!(dt > 0.0 && dt.is_finite(), "beta {beta:e}: {dt:e}");
+            let relative = (dt * beta - 1.0).abs();
+            assert!(relative < 1e-6, "beta {beta:e}: {dt:e}");
+        }
+        // Up to critical damping the direct form: no damping gives 2 / omega exactly.
+        assert_eq!(spring_dashpot_time_step(4.0, 1.0, 0.0), 1.0);
+        assert_eq!(
+            spring_dashpot_time_step(1.0, 1.0, 0.5),
+            2.0 * ((1.25f64).sqrt() - 0.5)
+        );
+    }
 }

@@ -481,17 +481,7 @@ impl ModelBuilder {
             dt: f64::INFINITY,
             source: "nothing (no elements or contacts)".into(),
         });
-        let dt = match self.time_step {
-            TimeStep::Fixed(dt) => dt,
-            TimeStep::Automatic { safety } => safety * bound.dt,
-        };
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(SolverError::InvalidScene(format!(
-                "time step {dt:e} s is not a positive finite number (stable bound {:e} s set by {}); \
-                 give simulation.dt explicitly",
-                bound.dt, bound.source
-            )));
-        }
+        let dt = step_of(self.time_step, &bound)?;
         Simulation::new(Assembled {
             state,
             bodies: self.bodies,
@@ -539,4 +529,33 @@ fn contact_stage(
         model.set_sheet_bodies(sheets, fold_depth)?;
     }
     Ok(ContactForces::new(model))
+}
+
+/// The time step of `rule` with the model's stable `bound`, refused unless positive and
+/// finite; the message names the input that made it so (the step given, the bound's
+/// source or the safety factor), in words a scene and a specimen both use.
+fn step_of(rule: TimeStep, bound: &StepBound) -> Result<f64, SolverError> {
+    let dt = match rule {
+        TimeStep::Fixed(dt) => dt,
+        TimeStep::Automatic { safety } => safety * bound.dt,
+    };
+    if dt.is_finite() && dt > 0.0 {
+        return Ok(dt);
+    }
+    let message = match rule {
+        TimeStep::Fixed(_) => {
+            format!("the time step given, {dt:e} s, is not a positive finite number; give one > 0")
+        }
+        TimeStep::Automatic { .. } if !(bound.dt.is_finite() && bound.dt > 0.0) => format!(
+            "no stable time step: the bound set by {} is {:e} s; check the values behind it, \
+             or give the time step explicitly (a scene's simulation.dt)",
+            bound.source, bound.dt
+        ),
+        TimeStep::Automatic { safety } => format!(
+            "the time step, dt_safety {safety:e} x the stable bound {:e} s (set by {}), is \
+             {dt:e} s, not a positive number; raise dt_safety",
+            bound.dt, bound.source
+        ),
+    };
+    Err(SolverError::InvalidScene(message))
 }
