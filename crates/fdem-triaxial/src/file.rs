@@ -182,9 +182,12 @@ impl PreparedSpecimen {
     /// definition or counts do not hold.
     pub fn load(path: &Path) -> Result<PreparedSpecimen, TriaxialError> {
         let bytes = std::fs::read(path).map_err(|e| TriaxialError::io("reading", path, e))?;
-        let version = check_preamble(&bytes, path)?;
+        check_magic(&bytes, path)?;
+        if !checksum_holds(&bytes) {
+            return Err(diagnose(&bytes, path));
+        }
+        let version = check_version(&bytes, path)?;
         let layout = Layout::read(&bytes, version, path)?;
-        check_checksum(&bytes, path)?;
         let header = read_header(&bytes[PREAMBLE..layout.body_start], version, path)?;
         let mut r = Reader {
             bytes: &bytes,
@@ -227,32 +230,48 @@ impl PreparedSpecimen {
     }
 }
 
-/// Refuses a file that does not start with [`MAGIC`], is shorter than the preamble, or is
-/// of a format version this build does not read; returns the version.
-fn check_preamble(bytes: &[u8], path: &Path) -> Result<u32, TriaxialError> {
+/// Refuses a file that does not start with [`MAGIC`] (or, shorter than it, is not its
+/// beginning) and one too short to hold the preamble and a checksum.
+fn check_magic(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
     let bad = |m: String| TriaxialError::file(path, m);
-    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+    let start = &bytes[..bytes.len().min(MAGIC.len())];
+    if !MAGIC.starts_with(start) {
         return Err(bad(
             "not an fdem specimen file (it does not start with FDEMSPEC); write one with \
              `fdem specimen --prepare --out FILE`"
                 .into(),
         ));
     }
-    if bytes.len() < PREAMBLE {
+    let shortest = PREAMBLE + CHECKSUM;
+    if bytes.len() < shortest {
         return Err(bad(format!(
-            "truncated: {} bytes, less than the {PREAMBLE}-byte preamble",
+            "truncated: {} bytes, less than the {shortest} of the preamble and the checksum; \
+             the file is incomplete (an interrupted copy?)",
             bytes.len()
         )));
     }
-    let version = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]);
+    Ok(())
+}
+
+/// Refuses a file of a format version this build does not read; returns the version.
+fn check_version(bytes: &[u8], path: &Path) -> Result<u32, TriaxialError> {
+    let version = stored_version(bytes);
     if !(OLDEST_VERSION..=FORMAT_VERSION).contains(&version) {
-        return Err(bad(format!(
-            "specimen format version {version}, but this fdem ({}) reads versions \
-             {OLDEST_VERSION} to {FORMAT_VERSION}; prepare the specimen again with this version",
-            env!("CARGO_PKG_VERSION")
-        )));
+        return Err(TriaxialError::file(
+            path,
+            format!(
+                "specimen format version {version}, but this fdem ({}) reads versions \
+                 {OLDEST_VERSION} to {FORMAT_VERSION}; prepare the specimen again with this version",
+                env!("CARGO_PKG_VERSION")
+            ),
+        ));
     }
     Ok(version)
+}
+
+/// The format version in the preamble (the length was checked).
+fn stored_version(bytes: &[u8]) -> u32 {
+    u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]])
 }
 
 /// Where the parts of a specimen file lie: the end of the header and the stored counts.
@@ -329,21 +348,123 @@ impl Layout {
     }
 }
 
-/// Refuses a file whose last eight bytes are not the checksum of the bytes before them.
-fn check_checksum(bytes: &[u8], path: &Path) -> Result<(), TriaxialError> {
-    let end = bytes.len() - 8;
+/// Bytes of the checksum at the end of the file.
+const CHECKSUM: usize = 8;
+
+/// Whether the last eight bytes are the checksum of the bytes before them.
+fn checksum_holds(bytes: &[u8]) -> bool {
+    let end = bytes.len() - CHECKSUM;
     let mut hash = Fnv::new();
     hash.update(&bytes[..end]);
-    let mut stored = [0u8; 8];
+    let mut stored = [0u8; CHECKSUM];
     stored.copy_from_slice(&bytes[end..]);
-    if hash.0 != u64::from_le_bytes(stored) {
-        return Err(TriaxialError::file(
+    hash.0 == u64::from_le_bytes(stored)
+}
+
+/// Says why a file whose checksum does not hold is damaged. A truncated file is the
+/// beginning of a whole one, so it is called truncated only when everything it holds is
+/// consistent with that: its header whole text (or text cut short), its stored counts
+/// those its definition implies, its size short of the layout, and the history entries
+/// present valid ones. Anything else is a changed byte.
+fn diagnose(bytes: &[u8], path: &Path) -> TriaxialError {
+    let len = bytes.len() as u64;
+    let corrupted = |what: String| {
+        TriaxialError::file(
             path,
-            "corrupted: the checksum does not match the contents; prepare the specimen again \
-             or restore the file from a good copy",
+            format!(
+                "corrupted: the checksum does not match the contents ({what}); prepare the \
+                 specimen again or restore the file from a good copy"
+            ),
+        )
+    };
+    let truncated = |needed: u64| {
+        TriaxialError::file(
+            path,
+            format!(
+                "truncated: {len} bytes, but the layout needs {needed}; the file is incomplete \
+                 (an interrupted copy?)"
+            ),
+        )
+    };
+    let version = stored_version(bytes);
+    if !(OLDEST_VERSION..=FORMAT_VERSION).contains(&version) {
+        return corrupted(format!("format version {version}"));
+    }
+    let mut r = Reader { bytes, at: 12 };
+    let header_len = r.u64().unwrap_or(0);
+    let header_end = (PREAMBLE as u64).saturating_add(header_len);
+    let fixed_end = header_end.saturating_add(fixed_size(version) as u64);
+    if header_end > len {
+        // A header cut short is text; a zero byte in what follows the preamble is binary
+        // data read as header, so the header length was changed.
+        return if bytes[PREAMBLE..].contains(&0) {
+            corrupted(format!("a header length of {header_len} bytes"))
+        } else {
+            truncated(fixed_end.saturating_add(CHECKSUM as u64))
+        };
+    }
+    let header = match read_header(&bytes[PREAMBLE..header_end as usize], version, path) {
+        Ok(h) => h,
+        Err(e) => return corrupted(format!("the header: {e}")),
+    };
+    let counts = match header.specimen.counts() {
+        Ok(c) => c,
+        Err(e) => return corrupted(format!("its definition: {e}")),
+    };
+    r.at = header_end as usize;
+    let stored: Vec<Option<u64>> = (0..4).map(|_| r.u64()).collect();
+    let [Some(particles), Some(nodes), Some(history), rigid] = stored[..] else {
+        return truncated(fixed_end.saturating_add(CHECKSUM as u64));
+    };
+    let rigid = if version >= 2 { rigid } else { Some(0) };
+    let Some(rigid) = rigid else {
+        return truncated(fixed_end.saturating_add(CHECKSUM as u64));
+    };
+    if (particles, nodes, rigid) != (counts.particles, counts.nodes, counts.rigid_particles) {
+        return corrupted(format!(
+            "it stores {particles} particles, {nodes} nodes and {rigid} rigid states, but its \
+             definition implies {}, {} and {}",
+            counts.particles, counts.nodes, counts.rigid_particles
         ));
     }
-    Ok(())
+    // The particle and node blocks have the sizes of the definition's counts.
+    let history_start = fixed_end
+        .saturating_add(particles.saturating_mul(9 * 8))
+        .saturating_add(nodes.saturating_mul(6 * 8));
+    let rest = rigid
+        .saturating_mul(RIGID_VALUES * 8)
+        .saturating_add(history_start)
+        .saturating_add(CHECKSUM as u64);
+    let expected = history.checked_mul(5 * 8).and_then(|h| h.checked_add(rest));
+    let Some(expected) = expected else {
+        return corrupted(format!("a history count of {history}"));
+    };
+    match expected.cmp(&len) {
+        std::cmp::Ordering::Greater => {
+            // The entries present must be valid ones (a node of the file, a counterpart
+            // code); a history count changed upwards reads what follows as entries.
+            r.at = history_start.min(len) as usize;
+            for _ in 0..history {
+                let Some(node) = r.u64() else { break };
+                let code = r.u64().unwrap_or(0);
+                if node >= nodes || code >> 32 > 1 {
+                    return corrupted(format!(
+                        "a history count of {history} disagrees with the entries stored"
+                    ));
+                }
+                if r.at + 3 * 8 > bytes.len() {
+                    break;
+                }
+                r.at += 3 * 8;
+            }
+            truncated(expected)
+        }
+        std::cmp::Ordering::Less => corrupted(format!(
+            "{len} bytes, {} more than the layout holds",
+            len - expected
+        )),
+        std::cmp::Ordering::Equal => corrupted("the layout is whole, so bytes were changed".into()),
+    }
 }
 
 /// Parses the TOML header and checks its format and the specimen definition.

@@ -373,6 +373,13 @@ fn refusal(bytes: &[u8]) -> String {
     }
 }
 
+/// FNV-1a 64, the specimen file's checksum, to write a whole file of another version.
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
 #[test]
 fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
     let dir = tempfile::tempdir().unwrap();
@@ -398,8 +405,12 @@ fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
     header[at] = if header[at] == b'1' { b'2' } else { b'1' };
     assert!(refusal(&header).contains("checksum"));
 
+    // A whole file (its checksum holds) of a later format version.
     let mut version = good.clone();
     version[8..12].copy_from_slice(&3u32.to_le_bytes());
+    let end = version.len() - 8;
+    let sum = fnv(&version[..end]);
+    version[end..].copy_from_slice(&sum.to_le_bytes());
     let m = refusal(&version);
     assert!(
         m.contains("format version 3") && m.contains("versions 1 to 2"),
@@ -411,6 +422,51 @@ fn damaged_or_foreign_files_are_refused_with_a_clear_message() {
     assert!(refusal(&longer).contains("4 more"));
 
     assert!(refusal(b"diameter = 0.3\n").contains("not an fdem specimen file"));
+}
+
+/// Every cut of a specimen file is called truncated, and every changed byte (one bit,
+/// at every offset of the preamble, the header and the counts, and at a stride through
+/// the rest) corrupted, never truncated: a changed count does not pass for a cut.
+#[test]
+fn cuts_are_truncations_and_changed_bytes_corruptions() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("good.fdemspec");
+    small_rigid().save(&path).unwrap();
+    let good = std::fs::read(&path).unwrap();
+    let header_len = u64::from_le_bytes(good[12..20].try_into().unwrap()) as usize;
+    let counts_end = 20 + header_len + 4 * 8;
+
+    let cuts = (0..counts_end + 64)
+        .chain((counts_end..good.len()).step_by(97))
+        .chain(good.len() - 16..good.len());
+    let mut n_cuts = 0;
+    for cut in cuts {
+        let m = refusal(&good[..cut]);
+        assert!(m.contains("truncated"), "cut at {cut}: {m}");
+        n_cuts += 1;
+    }
+
+    let offsets = (0..counts_end)
+        .chain((counts_end..good.len()).step_by(89))
+        .chain(good.len() - 8..good.len());
+    let mut n_flips = 0;
+    for at in offsets {
+        let mut bad = good.clone();
+        bad[at] ^= 1 << (at % 8);
+        let m = refusal(&bad);
+        let expected = if at < 8 {
+            "not an fdem specimen file"
+        } else {
+            "corrupted"
+        };
+        assert!(
+            m.contains(expected) && !m.contains("truncated"),
+            "bit {} of byte {at} changed: {m}",
+            at % 8
+        );
+        n_flips += 1;
+    }
+    eprintln!("{n_cuts} cuts and {n_flips} changed bytes refused");
 }
 
 #[test]
