@@ -26,6 +26,7 @@
 //! below 1 (the solver's `dt_safety`).
 
 use crate::ElementSet;
+use crate::modes::MassScaledStiffness;
 
 /// Relative residual `|r| / rho` at which the power iteration stops.
 pub const ASSEMBLED_STEP_TOLERANCE: f64 = 1e-3;
@@ -68,14 +69,8 @@ impl ElementSet {
         if self.n_elements() == 0 {
             return infinite;
         }
-        let scale: Vec<f64> = self
-            .lumped_masses(n)
-            .iter()
-            .map(|&m| if m > 0.0 { 1.0 / m.sqrt() } else { 0.0 })
-            .collect();
-        // Element stiffness matrices (row-major 3N x 3N) and node ids, once.
-        let npe = self.nodes_per_element();
-        let (stiffness, nodes) = self.rest_stiffness_and_nodes();
+        let op = MassScaledStiffness::new(self);
+        let scale = &op.scale;
         // A deterministic, generic start vector (golden-ratio sequence), zero on massless
         // nodes.
         let mut y: Vec<f64> = (0..3 * n)
@@ -93,22 +88,7 @@ impl ElementSet {
             }
             y.iter_mut().for_each(|x| *x /= norm);
             // A y = M^-1/2 K M^-1/2 y, element by element.
-            ay.fill(0.0);
-            let dofs = 3 * npe;
-            for (k, ids) in stiffness
-                .chunks_exact(dofs * dofs)
-                .zip(nodes.chunks_exact(npe))
-            {
-                for (row, k_row) in k.chunks_exact(dofs).enumerate() {
-                    let mut sum = 0.0;
-                    for (col, &kv) in k_row.iter().enumerate() {
-                        let j = ids[col / 3];
-                        sum += kv * scale[j] * y[3 * j + col % 3];
-                    }
-                    let i = ids[row / 3];
-                    ay[3 * i + row % 3] += scale[i] * sum;
-                }
-            }
+            op.apply(&y, &mut ay);
             let rho: f64 = ay.iter().zip(&y).map(|(a, v)| a * v).sum();
             let residual = ay
                 .iter()

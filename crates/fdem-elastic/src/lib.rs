@@ -51,16 +51,20 @@ mod assembled_step;
 mod element_set;
 mod error;
 mod kernels;
+mod lamb;
 mod lanes;
 mod mat3;
 mod material;
+mod modes;
 pub mod polar;
 
 pub use assembled_step::{ASSEMBLED_STEP_MAX_ITERATIONS, ASSEMBLED_STEP_TOLERANCE, AssembledStep};
 pub use element_set::{ElementSet, HRZ_CORNER_FRACTION, HRZ_MID_EDGE_FRACTION, TetKind};
 pub use error::ElasticError;
+pub use lamb::lamb_spheroidal_frequency;
 pub use mat3::Mat3;
 pub use material::Material;
+pub use modes::{VIBRATION_MODE_TOLERANCE, VibrationMode};
 pub use polar::polar_rotation;
 
 #[cfg(test)]

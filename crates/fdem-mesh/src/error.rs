@@ -19,6 +19,15 @@ pub enum MeshError {
         max: u32,
     },
 
+    /// The number of concentric shells is outside `1..=MAX_SHELLS`.
+    #[error("{shells} shells are out of range 1..={max}; use 1 to {max} shells")]
+    ShellsOutOfRange {
+        /// The number of shells that was asked for.
+        shells: u32,
+        /// The largest supported number ([`crate::MAX_SHELLS`]).
+        max: u32,
+    },
+
     /// The sphere diameter is zero, negative, infinite or NaN.
     #[error(
         "particle diameter {diameter} is invalid; give a finite diameter greater than 0 (in metres)"

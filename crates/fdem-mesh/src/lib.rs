@@ -76,5 +76,5 @@ pub use error::MeshError;
 pub use mesh::{
     ElementOrder, MeshQuality, Surface, TET_EDGES, TetMesh, VolumeProperties, volume_properties,
 };
-pub use sphere::{MAX_LEVEL, Sizing, SphereSpec, sphere_mesh};
+pub use sphere::{MAX_LEVEL, MAX_SHELLS, Sizing, SphereSpec, sphere_mesh, sphere_mesh_in_shells};
 pub use vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};

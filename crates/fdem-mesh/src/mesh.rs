@@ -301,13 +301,17 @@ impl TetMesh {
             min_altitude: f64::INFINITY,
             min_dihedral_deg: f64::INFINITY,
             max_dihedral_deg: 0.0,
+            max_aspect_ratio: 0.0,
         };
         for e in 0..self.n_elements() {
             let x = self.corners(e);
             let v = tet_signed_volume(x[0], x[1], x[2], x[3]);
             q.volume += v;
+            let mut longest: f64 = 0.0;
+            let mut lowest = f64::INFINITY;
             for &(i, j) in &TET_EDGES {
                 let len = distance(x[i], x[j]);
+                longest = longest.max(len);
                 q.min_edge = q.min_edge.min(len);
                 q.max_edge = q.max_edge.max(len);
                 let [k, l] = other_two(i, j);
@@ -319,12 +323,20 @@ impl TetMesh {
             for i in 0..4 {
                 let [a, b, c] = [(i + 1) % 4, (i + 2) % 4, (i + 3) % 4];
                 let area = triangle_area(x[a], x[b], x[c]);
-                q.min_altitude = q.min_altitude.min(3.0 * v.abs() / area);
+                lowest = lowest.min(3.0 * v.abs() / area);
             }
+            q.min_altitude = q.min_altitude.min(lowest);
+            q.max_aspect_ratio = q
+                .max_aspect_ratio
+                .max(longest / lowest / REGULAR_EDGE_PER_ALTITUDE);
         }
         q
     }
 }
+
+/// Edge over altitude of the regular tetrahedron, `sqrt(3/2)`: the unit of
+/// [`MeshQuality::max_aspect_ratio`].
+const REGULAR_EDGE_PER_ALTITUDE: f64 = 1.224_744_871_391_589;
 
 /// The two local corners of a tetrahedron that are not `i` or `j`.
 fn other_two(i: usize, j: usize) -> [usize; 2] {
@@ -424,4 +436,8 @@ pub struct MeshQuality {
     pub min_dihedral_deg: f64,
     /// Largest interior dihedral angle over all elements (degrees).
     pub max_dihedral_deg: f64,
+    /// Largest element aspect ratio: an element's longest edge over its smallest altitude,
+    /// divided by that ratio of the regular tetrahedron (`sqrt(3/2)`), so 1 for a regular
+    /// tetrahedron and unbounded for a flat one.
+    pub max_aspect_ratio: f64,
 }

@@ -1,4 +1,5 @@
-//! Tetrahedral meshes of spheres: a subdivided icosahedron plus one centre node.
+//! Tetrahedral meshes of spheres: a subdivided icosahedron plus one centre node, optionally
+//! refined along the radius into concentric shells.
 
 use std::collections::HashMap;
 
@@ -9,6 +10,9 @@ use crate::{ElementOrder, MeshError, Surface, TetMesh};
 
 /// Largest supported subdivision level (5120 tetrahedra).
 pub const MAX_LEVEL: u32 = 4;
+
+/// Largest supported number of concentric shells ([`sphere_mesh_in_shells`]).
+pub const MAX_SHELLS: u32 = 8;
 
 /// How the mesh is sized relative to the nominal sphere of diameter `d`.
 ///
@@ -56,7 +60,8 @@ impl SphereSpec {
     }
 }
 
-/// Meshes a sphere centred at the origin.
+/// Meshes a sphere centred at the origin: [`sphere_mesh_in_shells`] with one shell, the
+/// source paper's particle.
 ///
 /// The surface is an icosahedron subdivided `level` times (each triangle split in four,
 /// new vertices projected on the sphere); every surface triangle and the centre node form
@@ -81,10 +86,46 @@ impl SphereSpec {
 /// [`MeshError::LevelOutOfRange`] for a level above [`MAX_LEVEL`],
 /// [`MeshError::InvalidDiameter`] for a diameter that is not finite and positive.
 pub fn sphere_mesh(spec: &SphereSpec) -> Result<TetMesh, MeshError> {
+    sphere_mesh_in_shells(spec, 1)
+}
+
+/// Meshes a sphere centred at the origin in `shells` concentric layers of tetrahedra.
+///
+/// The outer surface is [`sphere_mesh`]'s, node for node (same ids, positions, triangles
+/// and control areas) for any number of shells; only the interior is refined along the
+/// radius. Inner shell `s` (`1..shells`) is the surface icosphere scaled to the radius
+/// `r_s = s R / shells` (equal thickness; `R` the radius of the surface vertices). The
+/// innermost layer joins shell 1 to the centre node (one tetrahedron per face, as in the
+/// one-shell mesh); every other layer is one prism per surface face between shells `s` and
+/// `s + 1`, split into three tetrahedra by the vertex-order rule: for a face with surface
+/// vertex ids `p < q < r` (lower case on the inner shell, upper case on the outer one) the
+/// tetrahedra are `p q r R`, `p q Q R` and `p P Q R`, so the quadrilateral over the edge
+/// `i < j` is always cut along `i`-inner to `j`-outer and neighbouring prisms conform.
+/// Quadratic elements have their mid-edge nodes at the midpoints of the straight edges.
+///
+/// Node numbering: the surface nodes as in [`sphere_mesh`] (vertices, then for quadratic
+/// meshes the surface mid-edge nodes), the centre node, the vertices of inner shells
+/// `1..shells` (shell by shell, in surface-vertex order), then (quadratic only) the
+/// mid-edge nodes of the innermost layer's radial edges in surface-vertex order and the
+/// remaining mid-edge nodes in order of first use by the elements. Elements: the innermost
+/// layer (one per face, in face order), then each prism layer outward (three per face).
+/// With `shells = k` a mesh of `F` faces and `V` surface vertices has `F (3k - 2)`
+/// tetrahedra and `k V + 1` corner nodes.
+///
+/// # Errors
+/// As [`sphere_mesh`], and [`MeshError::ShellsOutOfRange`] unless
+/// `1 <= shells <= MAX_SHELLS`.
+pub fn sphere_mesh_in_shells(spec: &SphereSpec, shells: u32) -> Result<TetMesh, MeshError> {
     if spec.level > MAX_LEVEL {
         return Err(MeshError::LevelOutOfRange {
             level: spec.level,
             max: MAX_LEVEL,
+        });
+    }
+    if !(1..=MAX_SHELLS).contains(&shells) {
+        return Err(MeshError::ShellsOutOfRange {
+            shells,
+            max: MAX_SHELLS,
         });
     }
     if !(spec.diameter.is_finite() && spec.diameter > 0.0) {
@@ -93,8 +134,57 @@ pub fn sphere_mesh(spec: &SphereSpec) -> Result<TetMesh, MeshError> {
         });
     }
     let (unit_vertices, faces) = icosphere(spec.level);
+    let radius = outer_radius(spec, &unit_vertices, &faces);
+    let layout = ShellLayout {
+        n_vertices: unit_vertices.len(),
+        shells: shells as usize,
+        // Quadratic meshes number the surface mid-edge nodes before the centre.
+        centre: unit_vertices.len()
+            + match spec.order {
+                ElementOrder::Linear => 0,
+                ElementOrder::Quadratic => 3 * faces.len() / 2,
+            },
+    };
+    let mut nodes: Vec<[f64; 3]> = unit_vertices.iter().map(|&p| scaled(radius, p)).collect();
+    let mut mids = match spec.order {
+        ElementOrder::Linear => HashMap::new(),
+        ElementOrder::Quadratic => surface_mid_edge_nodes(&faces, &mut nodes),
+    };
+    debug_assert_eq!(nodes.len(), layout.centre);
+    nodes.push([0.0; 3]);
+    for s in 1..layout.shells {
+        let r = radius * s as f64 / layout.shells as f64;
+        nodes.extend(unit_vertices.iter().map(|&p| scaled(r, p)));
+    }
+    let corners = shell_tetrahedra(&faces, &layout, &nodes);
+    match spec.order {
+        ElementOrder::Linear => {
+            let surface = Surface::from_triangles(faces, &nodes);
+            Ok(TetMesh {
+                order: ElementOrder::Linear,
+                nodes,
+                elements: corners.into_iter().flatten().collect(),
+                surface,
+            })
+        }
+        ElementOrder::Quadratic => {
+            let elements = quadratic_elements(&corners, &layout, &mut mids, &mut nodes);
+            let surface = Surface::from_triangles(quadratic_surface(&faces, &mids), &nodes);
+            Ok(TetMesh {
+                order: ElementOrder::Quadratic,
+                nodes,
+                elements,
+                surface,
+            })
+        }
+    }
+}
+
+/// Radius of the surface vertices for the sizing: the nominal radius (inscribed), or the
+/// radius that gives the unit polyhedron the volume `pi d^3 / 6` (volume equivalent).
+fn outer_radius(spec: &SphereSpec, unit_vertices: &[[f64; 3]], faces: &[[usize; 3]]) -> f64 {
     let radius = 0.5 * spec.diameter;
-    let scale = match spec.sizing {
+    match spec.sizing {
         Sizing::Inscribed => radius,
         Sizing::VolumeEquivalent => {
             // Volume of the unit-radius polyhedron: sum of the centre-based tets.
@@ -107,86 +197,139 @@ pub fn sphere_mesh(spec: &SphereSpec) -> Result<TetMesh, MeshError> {
                 .sum();
             radius * (4.0 / 3.0 * std::f64::consts::PI / unit_volume).cbrt()
         }
-    };
-    let scaled = |p: [f64; 3]| [scale * p[0], scale * p[1], scale * p[2]];
+    }
+}
 
-    let nv = unit_vertices.len();
-    let mut nodes: Vec<[f64; 3]> = unit_vertices.iter().map(|&p| scaled(p)).collect();
+fn scaled(r: f64, p: [f64; 3]) -> [f64; 3] {
+    [r * p[0], r * p[1], r * p[2]]
+}
 
-    match spec.order {
-        ElementOrder::Linear => {
-            let centre = nodes.len();
-            nodes.push([0.0; 3]);
-            let mut elements = Vec::with_capacity(4 * faces.len());
-            for &[a, b, c] in &faces {
-                elements.extend_from_slice(&[centre, a, b, c]);
-            }
-            let surface = Surface::from_triangles(faces, &nodes);
-            Ok(TetMesh {
-                order: ElementOrder::Linear,
-                nodes,
-                elements,
-                surface,
-            })
-        }
-        ElementOrder::Quadratic => {
-            // Surface-edge midpoints, numbered in order of first encounter.
-            let mut edge_mid: HashMap<(usize, usize), usize> = HashMap::new();
-            let mut mid = |a: usize, b: usize, nodes: &mut Vec<[f64; 3]>| -> usize {
-                let key = (a.min(b), a.max(b));
-                *edge_mid.entry(key).or_insert_with(|| {
-                    nodes.push(midpoint(nodes[a], nodes[b]));
-                    nodes.len() - 1
-                })
-            };
-            let face_mids: Vec<[usize; 3]> = faces
-                .iter()
-                .map(|&[a, b, c]| {
-                    [
-                        mid(a, b, &mut nodes),
-                        mid(b, c, &mut nodes),
-                        mid(c, a, &mut nodes),
-                    ]
-                })
-                .collect();
-            let centre = nodes.len();
-            nodes.push([0.0; 3]);
-            // Radial midpoint of vertex v: node radial0 + v.
-            let radial0 = nodes.len();
-            for v in 0..nv {
-                nodes.push(midpoint([0.0; 3], nodes[v]));
-            }
-            let mut elements = Vec::with_capacity(10 * faces.len());
-            let mut triangles = Vec::with_capacity(4 * faces.len());
-            for (&[a, b, c], &[ab, bc, ca]) in faces.iter().zip(&face_mids) {
-                // Corners [centre, a, b, c]; mid-edge nodes in VTK_QUADRATIC_TETRA order
-                // 4:(0,1) 5:(1,2) 6:(0,2) 7:(0,3) 8:(1,3) 9:(2,3).
-                elements.extend_from_slice(&[
-                    centre,
-                    a,
-                    b,
-                    c,
-                    radial0 + a,
-                    ab,
-                    radial0 + b,
-                    radial0 + c,
-                    ca,
-                    bc,
-                ]);
-                triangles.push([a, ab, ca]);
-                triangles.push([ab, b, bc]);
-                triangles.push([ca, bc, c]);
-                triangles.push([ab, bc, ca]);
-            }
-            let surface = Surface::from_triangles(triangles, &nodes);
-            Ok(TetMesh {
-                order: ElementOrder::Quadratic,
-                nodes,
-                elements,
-                surface,
-            })
+/// Where the corner nodes of a shelled sphere are numbered.
+struct ShellLayout {
+    /// Vertices per shell (the icosphere's).
+    n_vertices: usize,
+    /// Number of shells, >= 1.
+    shells: usize,
+    /// Id of the centre node; the inner shells' vertices follow it.
+    centre: usize,
+}
+
+impl ShellLayout {
+    /// Node id of icosphere vertex `v` on shell `s` (`1..=shells`; `shells` is the surface).
+    fn vertex(&self, s: usize, v: usize) -> usize {
+        if s == self.shells {
+            v
+        } else {
+            self.centre + 1 + (s - 1) * self.n_vertices + v
         }
     }
+}
+
+/// Corner nodes of every tetrahedron, positively oriented: the innermost layer
+/// `[centre, a, b, c]` per face, then three tetrahedra per face and prism layer (the
+/// vertex-order split of [`sphere_mesh_in_shells`]).
+fn shell_tetrahedra(
+    faces: &[[usize; 3]],
+    layout: &ShellLayout,
+    nodes: &[[f64; 3]],
+) -> Vec<[usize; 4]> {
+    let mut tets = Vec::with_capacity(faces.len() * (3 * layout.shells - 2));
+    for &[a, b, c] in faces {
+        tets.push([layout.centre, a, b, c].map(|v| {
+            if v == layout.centre {
+                v
+            } else {
+                layout.vertex(1, v)
+            }
+        }));
+    }
+    for s in 1..layout.shells {
+        for face in faces {
+            let mut sorted = *face;
+            sorted.sort_unstable();
+            let [p, q, r] = sorted.map(|v| layout.vertex(s, v));
+            let [pp, qq, rr] = sorted.map(|v| layout.vertex(s + 1, v));
+            for tet in [[p, q, r, rr], [p, q, qq, rr], [p, pp, qq, rr]] {
+                tets.push(positively_oriented(tet, nodes));
+            }
+        }
+    }
+    tets
+}
+
+/// The tetrahedron with corners 2 and 3 swapped if its signed volume is negative.
+fn positively_oriented(t: [usize; 4], nodes: &[[f64; 3]]) -> [usize; 4] {
+    let v = crate::geometry::tet_signed_volume(nodes[t[0]], nodes[t[1]], nodes[t[2]], nodes[t[3]]);
+    if v < 0.0 { [t[0], t[1], t[3], t[2]] } else { t }
+}
+
+/// Adds the midpoints of the surface edges to `nodes`, numbered in order of first
+/// encounter over the faces (edges `ab`, `bc`, `ca` of each), and returns them by edge.
+fn surface_mid_edge_nodes(
+    faces: &[[usize; 3]],
+    nodes: &mut Vec<[f64; 3]>,
+) -> HashMap<(usize, usize), usize> {
+    let mut mids = HashMap::new();
+    for &[a, b, c] in faces {
+        for (i, j) in [(a, b), (b, c), (c, a)] {
+            mid_edge_node(&mut mids, nodes, i, j);
+        }
+    }
+    mids
+}
+
+/// The mid-edge node of the edge `i`-`j`: the existing one, or a new node at the midpoint
+/// of the straight edge.
+fn mid_edge_node(
+    mids: &mut HashMap<(usize, usize), usize>,
+    nodes: &mut Vec<[f64; 3]>,
+    i: usize,
+    j: usize,
+) -> usize {
+    *mids.entry((i.min(j), i.max(j))).or_insert_with(|| {
+        nodes.push(midpoint(nodes[i], nodes[j]));
+        nodes.len() - 1
+    })
+}
+
+/// 10-node elements on the corner tetrahedra: the innermost layer's radial mid-edge nodes
+/// first (in surface-vertex order), then the others in order of first use; mid-edge nodes
+/// in VTK_QUADRATIC_TETRA order ([`crate::TET_EDGES`]).
+fn quadratic_elements(
+    corners: &[[usize; 4]],
+    layout: &ShellLayout,
+    mids: &mut HashMap<(usize, usize), usize>,
+    nodes: &mut Vec<[f64; 3]>,
+) -> Vec<usize> {
+    for v in 0..layout.n_vertices {
+        mid_edge_node(mids, nodes, layout.centre, layout.vertex(1, v));
+    }
+    let mut elements = Vec::with_capacity(10 * corners.len());
+    for t in corners {
+        elements.extend_from_slice(t);
+        for (i, j) in crate::TET_EDGES {
+            elements.push(mid_edge_node(mids, nodes, t[i], t[j]));
+        }
+    }
+    elements
+}
+
+/// The outward flat triangles of a quadratic sphere: each surface face `a b c` split into
+/// `a ab ca`, `ab b bc`, `ca bc c` and `ab bc ca` (`ab` the mid-edge node of `a`-`b`).
+fn quadratic_surface(
+    faces: &[[usize; 3]],
+    mids: &HashMap<(usize, usize), usize>,
+) -> Vec<[usize; 3]> {
+    let m = |a: usize, b: usize| mids[&(a.min(b), a.max(b))];
+    let mut triangles = Vec::with_capacity(4 * faces.len());
+    for &[a, b, c] in faces {
+        let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+        triangles.push([a, ab, ca]);
+        triangles.push([ab, b, bc]);
+        triangles.push([ca, bc, c]);
+        triangles.push([ab, bc, ca]);
+    }
+    triangles
 }
 
 /// Golden ratio.

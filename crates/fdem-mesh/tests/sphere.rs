@@ -331,6 +331,7 @@ fn quality_figures_are_sane() {
     let angle = (1.0f64 / 3.0).acos().to_degrees();
     assert_relative_eq!(q.min_dihedral_deg, angle, max_relative = 1e-12);
     assert_relative_eq!(q.max_dihedral_deg, angle, max_relative = 1e-12);
+    assert_relative_eq!(q.max_aspect_ratio, 1.0, max_relative = 1e-12);
     assert_relative_eq!(
         q.min_altitude,
         (2.0f64 / 3.0).sqrt() * edge,
