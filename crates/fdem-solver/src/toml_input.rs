@@ -27,12 +27,18 @@ pub struct InputError {
 }
 
 impl fmt::Display for InputError {
+    /// `file:line:column: key: message`; a rule across keys has no line of its own and
+    /// prints as `file: key: message` (no `file:0:0`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{}:{}:{}: {}: {}",
-            self.file, self.line, self.column, self.key, self.message
-        )
+        match (self.line, self.column) {
+            (0, _) => write!(f, "{}: {}: {}", self.file, self.key, self.message),
+            (line, 0) => write!(f, "{}:{line}: {}: {}", self.file, self.key, self.message),
+            (line, column) => write!(
+                f,
+                "{}:{line}:{column}: {}: {}",
+                self.file, self.key, self.message
+            ),
+        }
     }
 }
 
@@ -328,5 +334,13 @@ mod tests {
         let e = parse_toml::<Table>("_a = 1.0\n_b = 2.0\n", "f.toml").unwrap_err();
         assert_eq!((e.line, e.key.as_str()), (2, "_b"));
         assert_eq!(e.to_string(), "f.toml:2:6: _b: must lie in (0, 1], got 2");
+        // A rule across keys has no line: no `f.toml:0:0`.
+        let across = InputError {
+            line: 0,
+            column: 0,
+            key: "simulation.dt".into(),
+            ..e
+        };
+        assert!(across.to_string().starts_with("f.toml: simulation.dt: "));
     }
 }

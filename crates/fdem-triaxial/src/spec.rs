@@ -761,7 +761,8 @@ impl SpecimenSpec {
                 return Err((
                     "solid_fraction".into(),
                     format!(
-                        "{f} exceeds the densest packing of spheres ({DENSEST_PACKING:.4}); no arrangement reaches it"
+                        "{f} exceeds the densest packing of spheres (pi / sqrt(18) = \
+                         {DENSEST_PACKING}); no arrangement reaches it"
                     ),
                 ));
             }
@@ -793,8 +794,8 @@ impl SpecimenSpec {
             return Err((
                 "height".into(),
                 format!(
-                    "{} m is below the {needed:.4} m the solids need at the densest packing \
-                     ({DENSEST_PACKING:.4}); raise the height or lower the particle count",
+                    "{} m is below the {needed:.6} m the solids need at the densest packing \
+                     ({DENSEST_PACKING}); raise the height or lower the particle count",
                     self.height
                 ),
             ));
@@ -861,6 +862,22 @@ mod tests {
             assert!(e.starts_with(&format!("code: {key}: ")), "{key}: {e}");
             assert!(e.contains(fragment), "{key}: {e}");
         }
+    }
+
+    /// A fraction just above the densest packing is refused with a limit printed to
+    /// enough digits to see that it lies above (0.7405 > 0.74048...).
+    #[test]
+    fn a_fraction_above_the_densest_packing_is_refused_with_the_exact_limit() {
+        let mut spec = crate::quick_spec();
+        spec.solid_fraction = Some(0.7405);
+        let e = spec.validate("code").unwrap_err().to_string();
+        assert!(e.contains("0.7405 exceeds") && e.contains("0.74048"), "{e}");
+        spec.solid_fraction = Some(DENSEST_PACKING);
+        let e = spec.validate("code").map_err(|e| e.to_string());
+        assert!(
+            e.as_ref().map_or_else(|m| !m.contains("exceeds"), |_| true),
+            "{e:?}"
+        );
     }
 
     /// Sizes and contact lengths follow h; with exact scaling the parameters follow
