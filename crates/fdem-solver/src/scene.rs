@@ -17,7 +17,9 @@ use crate::{
     mean_node_area,
 };
 use fdem_contact::ContactParams;
-use fdem_mesh::{ElementOrder, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh};
+use fdem_mesh::{
+    ElementOrder, MAX_SHELLS, Placement, Sizing, SphereSpec, TetMesh, sphere_mesh_in_shells,
+};
 use serde::{Deserialize, Deserializer, Serialize, de::Error as _};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -425,7 +427,7 @@ impl std::str::FromStr for ParticleModel {
     }
 }
 
-/// `mesh = { level = 1, order = "linear", sizing = "inscribed", axes = [1, 1, 1] }`.
+/// `mesh = { level = 1, order = "linear", shells = 1, sizing = "inscribed", axes = [1, 1, 1] }`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSection {
@@ -435,6 +437,14 @@ pub struct MeshSection {
     /// `"linear"` (4-node) or `"quadratic"` (10-node); default linear.
     #[serde(default = "default_order")]
     pub order: ElementOrder,
+    /// Concentric layers of tetrahedra along the radius, `1..=MAX_SHELLS`
+    /// ([`sphere_mesh_in_shells`]); default 1, every element touching the centre.
+    #[serde(
+        default = "default_shells",
+        deserialize_with = "shells",
+        skip_serializing_if = "is_one_shell"
+    )]
+    pub shells: u32,
     /// `"inscribed"` or `"volume_equivalent"`; default inscribed.
     #[serde(default)]
     pub sizing: Sizing,
@@ -454,6 +464,7 @@ impl Default for MeshSection {
         MeshSection {
             level: default_level(),
             order: default_order(),
+            shells: default_shells(),
             sizing: Sizing::default(),
             axes: sphere_axes(),
         }
@@ -474,14 +485,16 @@ impl MeshSection {
     /// ellipsoid by `axes`.
     ///
     /// # Errors
-    /// What fdem-mesh refuses (a level out of range, axes that are not positive).
+    /// What fdem-mesh refuses (a level or shell count out of range, axes that are not
+    /// positive).
     pub fn template(&self) -> Result<TetMesh, fdem_mesh::MeshError> {
-        let sphere = sphere_mesh(&SphereSpec {
+        let spec = SphereSpec {
             level: self.level,
             order: self.order,
             diameter: 1.0,
             sizing: self.sizing,
-        })?;
+        };
+        let sphere = sphere_mesh_in_shells(&spec, self.shells)?;
         if is_sphere(&self.axes) {
             Ok(sphere)
         } else {
@@ -496,6 +509,26 @@ fn default_level() -> u32 {
 
 fn default_order() -> ElementOrder {
     ElementOrder::Linear
+}
+
+fn default_shells() -> u32 {
+    1
+}
+
+fn is_one_shell(shells: &u32) -> bool {
+    *shells == default_shells()
+}
+
+/// `deserialize_with` for the number of shells: an integer in `1..=MAX_SHELLS`.
+fn shells<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = i64::deserialize(d)?;
+    if (1..=i64::from(MAX_SHELLS)).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(D::Error::custom(format!(
+            "the number of shells must be an integer from 1 to {MAX_SHELLS}, got {v}"
+        )))
+    }
 }
 
 /// Default fraction of the stable bound.
@@ -729,13 +762,14 @@ impl Scene {
     /// kind, scaled, rotated and moved to each particle) and returns their ids.
     pub fn add_particles(&self, model: &mut ModelBuilder) -> Result<Vec<BodyId>, SolverError> {
         let material = self.elastic_material()?;
-        let mut templates: BTreeMap<(u32, bool, bool, [u64; 3]), TetMesh> = BTreeMap::new();
+        let mut templates: BTreeMap<(u32, bool, u32, bool, [u64; 3]), TetMesh> = BTreeMap::new();
         let mut ids = Vec::with_capacity(self.particles.len());
         for p in &self.particles {
             let mesh = p.mesh.unwrap_or_default();
             let key = (
                 mesh.level,
                 mesh.order == ElementOrder::Quadratic,
+                mesh.shells,
                 mesh.sizing == Sizing::VolumeEquivalent,
                 mesh.axes.map(f64::to_bits),
             );

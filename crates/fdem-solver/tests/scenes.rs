@@ -109,6 +109,18 @@ fn each_kind_of_mistake_names_its_key_and_line() {
         ("level = 1", "level = 9", "particle[0].mesh.level", 16),
         (
             "level = 1",
+            "level = 1, shells = 0",
+            "particle[0].mesh.shells",
+            16,
+        ),
+        (
+            "level = 1",
+            "level = 1, shells = 9",
+            "particle[0].mesh.shells",
+            16,
+        ),
+        (
+            "level = 1",
             "level = 1, axes = [1.0, 0.0, 0.5]",
             "particle[0].mesh.axes",
             16,

@@ -246,6 +246,7 @@ pub fn particle_sections(
     let mesh = MeshSection {
         level: spec.mesh.level,
         order: spec.mesh.order,
+        shells: 1,
         sizing: spec.mesh.sizing,
         axes: fdem_solver::sphere_axes(),
     };
