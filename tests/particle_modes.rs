@@ -68,7 +68,7 @@ fn oblate_frequencies(p: &Particle) -> [f64; 5] {
 
 /// Frequency (Hz) of the mesh's breathing mode: the mode that `u = x` excites most.
 fn breathing_frequency(p: &Particle) -> f64 {
-    frequencies(p, &[p.mesh.nodes.clone()])[0]
+    frequencies(p, std::slice::from_ref(&p.mesh.nodes))[0]
 }
 
 /// Frequencies (Hz) of the modes the start shapes excite most. Panics unless every mode
@@ -198,7 +198,7 @@ fn level_two_three_shells_quadratic_within_three_percent() {
 
 /// The table of docs/VERIFICATION.md: every level 1-3, shells 1-4, both orders.
 #[test]
-#[ignore = "prints the convergence table (about ten minutes in release)"]
+#[ignore = "prints the convergence table (about seven minutes in release)"]
 fn convergence_table() {
     let (f2, f0) = (lamb(2), lamb(0));
     println!("Lamb: n = 2 {:.1} Hz, n = 0 {:.1} Hz", f2, f0);
