@@ -19,20 +19,36 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Print the exact-scaling factors (paper Table 1), or exactly scale a scene file.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Scale(commands::scale::ScaleArgs),
     /// Build a tetrahedral sphere mesh and print its statistics (optionally write VTU).
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Mesh(commands::mesh::MeshArgs),
     /// Run a scene file (TOML) and write its outputs to a directory.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Run(commands::run::RunArgs),
     /// Coarse-grain a scene: particle sizes x h in the same domain (optionally with exact scaling).
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Coarsen(commands::coarsen::CoarsenArgs),
     /// Specimens of the triaxial test: counts, preparation by the dynamic method, saved files.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Specimen(commands::specimen::SpecimenArgs),
     /// The triaxial test end to end: prepare (or reuse) a specimen, consolidate, shear, write curve.csv, summary.json, plots and peak contacts.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Triaxial(commands::triaxial::TriaxialArgs),
     /// Finished triaxial tests side by side: curves on one chart, results and costs against the first run.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Compare(commands::compare::CompareArgs),
     /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
     Micro(commands::micro::MicroArgs),
 }
 

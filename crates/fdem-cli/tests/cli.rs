@@ -544,3 +544,89 @@ fn a_signal_stops_a_preparation_without_a_file() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// `fdem triaxial` stopped by SIGTERM, SIGINT, or SIGINT twice at once during its test
+/// ends within seconds with a complete `interrupted` summary, whole CSV rows and no
+/// temporary file (the quick specimen, prepared by the first run and reused by the
+/// others from a copy in their own directories).
+#[cfg(unix)]
+#[test]
+fn signals_stop_a_triaxial_test_with_complete_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let prepared = dir.path().join("term").join("specimen.fdemspec");
+    for (name, signals) in [
+        ("term", &["-TERM"][..]),
+        ("int", &["-INT"][..]),
+        ("int-twice", &["-INT", "-INT"][..]),
+    ] {
+        let out = dir.path().join(name);
+        if prepared.exists() {
+            std::fs::create_dir_all(&out).unwrap();
+            std::fs::copy(&prepared, out.join("specimen.fdemspec")).unwrap();
+        }
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fdem"))
+            .args(["triaxial", "--quick", "--out", out.to_str().unwrap()])
+            .args(["--threads", "1"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        // Until the test (after the preparation) has begun its rows.
+        let rows = out.join("consolidation.csv");
+        let start = std::time::Instant::now();
+        while !rows.exists() && start.elapsed().as_secs() < 300 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        assert!(rows.exists(), "{name}: the test did not start");
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        let status = signal_and_wait(&mut child, signals, 30);
+        assert_eq!(status.code(), Some(1), "{name}");
+        let summary: Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["status"], "interrupted", "{name}");
+        let rows = std::fs::read_to_string(out.join("consolidation.csv")).unwrap();
+        assert!(rows.ends_with('\n') && rows.lines().count() >= 1, "{name}");
+        let columns = rows.lines().next().unwrap().split(',').count();
+        assert!(
+            rows.lines().all(|l| l.split(',').count() == columns),
+            "{name}: {rows}"
+        );
+        let parts: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".part"))
+            .collect();
+        assert!(parts.is_empty(), "{name}: {parts:?}");
+    }
+}
+
+/// A negative number given to a numeric flag is a value out of range, refused in one
+/// line naming the flag, not an unknown argument.
+#[test]
+fn negative_flag_values_are_refused_as_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x");
+    let out = out.to_str().unwrap();
+    for (args, expected) in [
+        (
+            &["triaxial", "--quick", "--out", out, "--strain", "-1"][..],
+            "--strain must lie in (0, 0.5], got -1",
+        ),
+        (
+            &["triaxial", "--quick", "--out", out, "--threads", "-1"][..],
+            "'-1' for '--threads",
+        ),
+        (
+            &["specimen", "--test", "E4s", "--counts", "--level", "-1"][..],
+            "'-1' for '--level",
+        ),
+    ] {
+        let o = fdem(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} accepted");
+        assert!(err.contains(expected), "{args:?}: {err}");
+        assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+    }
+}

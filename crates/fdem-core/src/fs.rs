@@ -43,6 +43,26 @@ pub fn write_atomically(path: &Path, bytes: impl AsRef<[u8]>) -> io::Result<()> 
     file.finish()
 }
 
+/// The temporaries being written, so that an exit that runs no destructors (a second
+/// interrupt, which exits at once) can still remove them ([`remove_unfinished`]).
+static UNFINISHED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn unfinished() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    UNFINISHED
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Removes the temporary of every [`AtomicFile`] still being written (best effort), for
+/// a process about to exit without finishing them; returns how many there were.
+pub fn remove_unfinished() -> usize {
+    let partials = std::mem::take(&mut *unfinished());
+    for p in &partials {
+        let _ = std::fs::remove_file(p);
+    }
+    partials.len()
+}
+
 /// A file written piece by piece (rows of a time series, a binary record) under its
 /// temporary name and renamed into place by [`AtomicFile::finish`].
 ///
@@ -63,6 +83,7 @@ impl AtomicFile {
     pub fn create(path: &Path) -> io::Result<Self> {
         let partial = partial_path(path)?;
         let file = File::create(&partial)?;
+        unfinished().push(partial.clone());
         Ok(AtomicFile {
             writer: Some(BufWriter::new(file)),
             partial,
@@ -99,13 +120,24 @@ impl AtomicFile {
             .map_err(io::IntoInnerError::into_error)?;
         file.sync_all()?;
         drop(file);
-        std::fs::rename(&self.partial, &self.path)
+        std::fs::rename(&self.partial, &self.path)?;
+        self.forget();
+        Ok(())
     }
 
     fn discard(&mut self) {
         self.writer = None;
         // Best effort: the temporary may already be gone.
         let _ = std::fs::remove_file(&self.partial);
+        self.forget();
+    }
+
+    /// Takes the temporary off the list of unfinished ones.
+    fn forget(&self) {
+        let mut list = unfinished();
+        if let Some(i) = list.iter().position(|p| *p == self.partial) {
+            list.swap_remove(i);
+        }
     }
 
     fn writer(&mut self) -> io::Result<&mut BufWriter<File>> {

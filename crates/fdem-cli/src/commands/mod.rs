@@ -76,7 +76,8 @@ const INTERRUPT_GRACE: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// A flag that Ctrl-C, SIGTERM or SIGHUP sets: the long loops check it, stop, and finish
 /// their outputs with an `interrupted` summary. A second interrupt more than
-/// [`INTERRUPT_GRACE`] after the first exits at once (status 130).
+/// [`INTERRUPT_GRACE`] after the first exits at once (status 130), removing the
+/// temporaries of the unfinished outputs.
 pub fn interrupt_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::{Arc, Mutex, PoisonError};
@@ -96,7 +97,11 @@ pub fn interrupt_flag() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
                     INTERRUPT_GRACE.as_secs()
                 );
             }
-            Some(t) if t.elapsed() >= INTERRUPT_GRACE => std::process::exit(130),
+            Some(t) if t.elapsed() >= INTERRUPT_GRACE => {
+                // Exiting runs no destructors: the unfinished outputs go here.
+                fdem_core::fs::remove_unfinished();
+                std::process::exit(130)
+            }
             Some(_) => {}
         }
     });
