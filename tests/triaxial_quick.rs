@@ -56,6 +56,7 @@ fn quick_triaxial_test_runs_end_to_end() {
         out_dir: dir.path().join("interrupted"),
         vtk: false,
         dt: None,
+        energy_jumps: None,
     };
     let summary = run_test(&prepared, &options, &mut StopEarly(0), &never).unwrap();
     assert_eq!(summary.status, "interrupted");
@@ -69,6 +70,7 @@ fn quick_triaxial_test_runs_end_to_end() {
         out_dir: dir.path().join("quick"),
         vtk: true,
         dt: None,
+        energy_jumps: None,
     };
     let summary =
         run_test(&prepared, &options, &mut fdem_triaxial::SilentTest, &never).expect("test runs");

@@ -10,6 +10,7 @@
 //! the forces afterwards, serially in node order.
 
 use crate::broad::{BroadPhase, CHUNK, Candidate};
+use crate::events::{Reason, Rejection};
 use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel};
@@ -41,6 +42,9 @@ pub(crate) struct ChunkScratch {
     signed: Vec<f64>,
     pub(crate) sums: Sums,
     pub(crate) error: Option<ContactError>,
+    /// Why (node, body) pairs with candidates got no contact; filled only while the
+    /// stored-energy jump log is on ([`crate::events`]).
+    pub(crate) rejections: Vec<Rejection>,
 }
 
 /// The contact of a node with one face: the triangle, its global node ids, the hit.
@@ -49,6 +53,8 @@ pub(crate) struct FaceContact {
     pub(crate) triangle: usize,
     pub(crate) nodes: [usize; 3],
     pub(crate) hit: FaceHit,
+    /// Whether the hit is a sheet's edge test (the closest point on an edge or vertex).
+    pub(crate) edge: bool,
 }
 
 /// A node and its candidate faces on one other body: what the per-body rules look at.
@@ -116,6 +122,8 @@ pub(crate) struct Ctx<'a> {
     /// Whether to check each node against the walls' velocities for tunnelling.
     pub(crate) check_walls: bool,
     pub(crate) sheets: &'a Sheets,
+    /// Whether to record the rejections of the stored-energy jump log.
+    pub(crate) diagnose: bool,
 }
 
 impl Ctx<'_> {
@@ -148,6 +156,7 @@ impl Ctx<'_> {
         scratch.contacts.clear();
         scratch.sums = Sums::default();
         scratch.error = None;
+        scratch.rejections.clear();
         let n = self.surface.surface_nodes.len();
         let start = chunk * CHUNK;
         let first_key = history_key(start, Counterpart::Body(0));
@@ -216,71 +225,87 @@ impl Ctx<'_> {
                 reach,
             };
             start = end;
-            if let Some(contact) = self.group_contact(k, v, &group, &mut scratch.sums)? {
-                self.push_face(k, v, body, contact, scratch, cursor)?;
+            match self.group_contact(k, v, &group, &mut scratch.sums)? {
+                Ok(contact) => self.push_face(k, v, body, contact, scratch, cursor)?,
+                Err(reason) if self.diagnose => scratch.rejections.push(Rejection {
+                    key: history_key(k, Counterpart::Body(body)),
+                    reason,
+                }),
+                Err(_) => {}
             }
         }
         Ok(())
     }
 
     /// The contact of surface node `k` with one other body: the nearest face it is behind,
-    /// else for a sheet its nearest edge; none when a nearer face of the body has it in
-    /// front, or when it is a sheet's fold artefact (counted in `sums`). The sheet rules
-    /// are explained in the `sheet` module.
+    /// else for a sheet its nearest edge; none (with the reason) when a nearer face of the
+    /// body has it in front, or when it is a sheet's fold artefact (counted in `sums`). The
+    /// sheet rules are explained in the `sheet` module.
     fn group_contact(
         &self,
         k: usize,
         v: [f64; 3],
         group: &FaceGroup<'_>,
         sums: &mut Sums,
-    ) -> Result<Option<FaceContact>, ContactError> {
-        let mut best = self.nearest_face(k, v, group)?;
-        if best.is_none() && self.sheets.is_sheet(group.body) {
-            best = sheet::edge_contact(group);
-        }
+    ) -> Result<Result<FaceContact, Reason>, ContactError> {
+        self.check_tunnelling(k, v, group)?;
+        let is_sheet = self.sheets.is_sheet(group.body);
+        let best = if is_sheet {
+            sheet::closest_contact(group)
+        } else {
+            self.nearest_face(group)
+        };
+        let Some(best) = best else {
+            return Ok(Err(Reason::NoFaceBehind));
+        };
         // Closest face wins: a face of the same body that covers the node from the
         // front, nearer than the deepest-behind hit, means the node is outside there.
-        let best = best.filter(|b| !sheet::covered_in_front(group, b.hit.depth));
+        // (A sheet's closest point already decides that by its pseudo-normal.)
+        if !is_sheet && sheet::covered_in_front(group, best.hit.depth) {
+            return Ok(Err(Reason::ClosestFace));
+        }
         // A sheet hit deeper than the fold depth is a fold artefact (the sheet moves
         // slowly and has the edge test): discard it, count it.
-        Ok(match best {
-            Some(b) if self.sheets.is_fold_artefact(group.body, b.hit.depth) => {
-                sums.discarded += 1;
-                None
-            }
-            other => other,
-        })
+        if self.sheets.is_fold_artefact(group.body, best.hit.depth) {
+            sums.discarded += 1;
+            return Ok(Err(Reason::FoldDiscard));
+        }
+        Ok(Ok(best))
     }
 
-    /// The nearest face of the group that node `k` is behind with its foot inside, after
-    /// the tunnelling check against every face of the group (when this step needs it).
-    fn nearest_face(
+    /// The tunnelling check of node `k` (velocity `v`) against every face of the group,
+    /// when this step needs it: the node may not move more than half the margin relative
+    /// to a face's centroid in one step.
+    fn check_tunnelling(
         &self,
         k: usize,
         v: [f64; 3],
         group: &FaceGroup<'_>,
-    ) -> Result<Option<FaceContact>, ContactError> {
-        let (x, reach) = (group.x, group.reach);
+    ) -> Result<(), ContactError> {
+        if !self.check_faces {
+            return Ok(());
+        }
         let half = TUNNELLING_FRACTION * self.margin;
+        for c in group.cands {
+            let [a, b, cc] = c.nodes.map(|j| self.velocities[j as usize]);
+            let vc = scale(add(add(a, b), cc), 1.0 / 3.0);
+            let d = norm(sub(v, vc)) * self.dt;
+            if d > half {
+                return Err(self.tunnelling(k, Counterpart::Body(group.body), d));
+            }
+        }
+        Ok(())
+    }
+
+    /// The nearest face of the group that the node is behind with its foot inside.
+    fn nearest_face(&self, group: &FaceGroup<'_>) -> Option<FaceContact> {
+        let (x, reach) = (group.x, group.reach);
         let mut best: Option<FaceContact> = None;
         for (c, &s) in group.cands.iter().zip(group.signed) {
-            let nodes = c.nodes.map(|j| j as usize);
-            if self.check_faces {
-                let vc = scale(
-                    add(
-                        add(self.velocities[nodes[0]], self.velocities[nodes[1]]),
-                        self.velocities[nodes[2]],
-                    ),
-                    1.0 / 3.0,
-                );
-                let d = norm(sub(v, vc)) * self.dt;
-                if d > half {
-                    return Err(self.tunnelling(k, Counterpart::Body(group.body), d));
-                }
-            }
             if !reach.within(s) {
                 continue;
             }
+            let nodes = c.nodes.map(|j| j as usize);
             let face = nodes.map(|j| self.positions[j]);
             if let Some(hit) = self.kernel.project(x, face, reach.depth_limit)
                 && best.is_none_or(|b| hit.depth < b.hit.depth)
@@ -289,10 +314,11 @@ impl Ctx<'_> {
                     triangle: c.triangle as usize,
                     nodes,
                     hit,
+                    edge: false,
                 });
             }
         }
-        Ok(best)
+        best
     }
 
     /// Records the contact of surface node `k` (velocity `v`) with a face of body `other`,
@@ -310,6 +336,7 @@ impl Ctx<'_> {
             triangle,
             nodes,
             hit,
+            edge,
         } = contact;
         let counterpart = Counterpart::Body(other);
         let depth_limit = self.depth_limit;
@@ -341,6 +368,9 @@ impl Ctx<'_> {
             hit.normal,
             sub(v, v_face),
         );
+        if let Some(last) = scratch.contacts.last_mut() {
+            last.edge = edge;
+        }
         Ok(())
     }
 
@@ -458,6 +488,7 @@ impl Ctx<'_> {
             sliding: out.sliding,
             damping_force,
             relative_velocity,
+            edge: false,
         });
     }
 }

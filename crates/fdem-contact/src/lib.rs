@@ -113,6 +113,7 @@
 mod broad;
 mod detect;
 mod error;
+pub mod events;
 mod law;
 mod model;
 pub mod narrow;

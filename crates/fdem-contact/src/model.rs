@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::broad::{BroadPhase, CHUNK};
 use crate::detect::{ChunkScratch, Ctx};
+use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::sheet::Sheets;
@@ -135,6 +136,10 @@ pub struct NodeContact {
     pub(crate) damping_force: [f64; 3],
     #[serde(skip)]
     pub(crate) relative_velocity: [f64; 3],
+    /// Whether the contact is a sheet's edge hit (the closest point on an edge or vertex
+    /// of a face the node is behind) rather than a face hit.
+    #[serde(skip)]
+    pub(crate) edge: bool,
 }
 
 impl NodeContact {
@@ -291,6 +296,8 @@ pub struct ContactModel {
     report: ContactReport,
     /// The sheet bodies and their fold depth (`set_sheet_bodies`).
     sheets: Sheets,
+    /// The stored-energy jump log, while it is on (`set_energy_jump_log`).
+    jumps: Option<JumpLog>,
 }
 
 /// The smallest spring-dashpot bound over the surface nodes (see
@@ -413,6 +420,7 @@ impl ContactModel {
             walls,
             surface,
             sheets: Sheets::default(),
+            jumps: None,
         })
     }
 
@@ -442,11 +450,11 @@ impl ContactModel {
         &self.walls
     }
 
-    /// Declares bodies as sheets (thin open surfaces such as a membrane). A node that no
-    /// face of a sheet covers is also tested against the sheet's edges and vertices
-    /// ([`crate::narrow::project_to_edge`]), which closes the holes node-to-face contact
-    /// has at the sheet's convex ridges; the closest-face rule keeps nodes that a nearer
-    /// face has in front out of contact. A node found behind a sheet deeper than
+    /// Declares bodies as sheets (thin open surfaces such as a membrane). A node's depth
+    /// behind a sheet is its distance to the sheet's closest point, where the
+    /// angle-weighted pseudo-normal there says the node is behind: continuous over the
+    /// sheet's faces, edges and vertices, so contacts neither appear nor vanish at a
+    /// finite depth as they slide over a folded sheet. A node found behind a sheet deeper than
     /// `fold_depth` (m) is not an error but a fold artefact of a sheet draped over angular
     /// particles: the hit is discarded and counted in
     /// [`ContactReport::discarded_sheet_hits`] (the caller checks containment by other
@@ -800,9 +808,131 @@ impl ContactModel {
         self.narrow_phase(positions, velocities, dt, guards)?;
 
         // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
+        let before = self.jumps.is_some().then(|| self.contacts.clone());
         let report = self.apply_forces(forces, rebuilt);
         self.report = report;
+        if let Some(before) = before {
+            self.log_jumps(&before);
+        }
         Ok(report)
+    }
+
+    /// Turns the stored-energy jump log ([`crate::events`]) on with a `threshold` (J): from
+    /// the next evaluation on, every contact whose stored energy jumps by more than it is
+    /// logged with its cause. `None` turns it off and drops what was logged.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidLength`] for a threshold that is not finite and >= 0.
+    pub fn set_energy_jump_log(&mut self, threshold: Option<f64>) -> Result<(), ContactError> {
+        self.jumps = match threshold {
+            None => None,
+            Some(t) if t.is_finite() && t >= 0.0 => Some(JumpLog {
+                threshold: t,
+                ..JumpLog::default()
+            }),
+            Some(t) => {
+                return Err(ContactError::InvalidLength {
+                    what: "energy jump threshold (J)",
+                    value: t,
+                });
+            }
+        };
+        Ok(())
+    }
+
+    /// The jumps logged since the last call (empty while the log is off).
+    pub fn take_energy_jumps(&mut self) -> Vec<EnergyJump> {
+        self.jumps
+            .as_mut()
+            .map(|log| std::mem::take(&mut log.events))
+            .unwrap_or_default()
+    }
+
+    /// Stored energy `k_n d_n^2 / 2 + k_s |d_s|^2 / 2` of a contact (J).
+    fn contact_energy(&self, c: &NodeContact) -> f64 {
+        let k = (c.key >> 33) as usize;
+        let coef = &self.coefficients[k];
+        0.5 * coef.normal_stiffness * c.depth * c.depth
+            + 0.5 * coef.tangential_stiffness * norm2(c.tangential_displacement)
+    }
+
+    /// Why surface node `k` has no contact with `counterpart` in an evaluation whose
+    /// recorded rejections are `rejections` (sorted by key).
+    fn reason(&self, key: u64, counterpart: Counterpart, rejections: &[Rejection]) -> Reason {
+        if let Counterpart::Wall(_) = counterpart {
+            return Reason::InFrontOfWall;
+        }
+        match rejections.binary_search_by_key(&key, |r| r.key) {
+            Ok(i) => rejections[i].reason,
+            Err(_) => Reason::NoCandidate,
+        }
+    }
+
+    /// Merges this evaluation's contacts with `before` (the previous evaluation's, both
+    /// sorted by key) and logs the jumps above the threshold.
+    fn log_jumps(&mut self, before: &[NodeContact]) {
+        let Some(mut log) = self.jumps.take() else {
+            return;
+        };
+        let rejections: Vec<Rejection> = self
+            .chunks
+            .iter()
+            .flat_map(|c| c.rejections.iter().copied())
+            .collect();
+        let (mut i, mut j) = (0, 0);
+        let now = &self.contacts;
+        while i < before.len() || j < now.len() {
+            let (b, a) = match (before.get(i), now.get(j)) {
+                (Some(b), Some(a)) if b.key == a.key => (Some(b), Some(a)),
+                (Some(b), Some(a)) if b.key < a.key => (Some(b), None),
+                (Some(b), None) => (Some(b), None),
+                (_, a) => (None, a),
+            };
+            i += usize::from(b.is_some());
+            j += usize::from(a.is_some());
+            let jump = self.jump(b, a, &rejections, &log.previous_rejections);
+            if let Some(jump) = jump.filter(|e| e.change().abs() > log.threshold) {
+                log.events.push(jump);
+            }
+        }
+        log.previous_rejections = rejections;
+        self.jumps = Some(log);
+    }
+
+    /// The jump of one contact key between two evaluations (`before`, `after`), if it is
+    /// a discontinuity (appeared, vanished, or on another face).
+    fn jump(
+        &self,
+        before: Option<&NodeContact>,
+        after: Option<&NodeContact>,
+        rejections: &[Rejection],
+        previous_rejections: &[Rejection],
+    ) -> Option<EnergyJump> {
+        let c = after.or(before)?;
+        let kind = match (before, after) {
+            (Some(b), Some(a)) if b.face != a.face || b.edge != a.edge => JumpKind::FaceSwitch,
+            (Some(_), Some(_)) => return None,
+            (Some(b), None) => JumpKind::Vanished(self.reason(b.key, b.counterpart, rejections)),
+            (None, Some(a)) => {
+                JumpKind::Appeared(self.reason(a.key, a.counterpart, previous_rejections))
+            }
+            (None, None) => return None,
+        };
+        let energy = |x: Option<&NodeContact>| x.map_or(0.0, |x| self.contact_energy(x));
+        let depth = |x: Option<&NodeContact>| x.map_or(0.0, |x| x.depth);
+        let edge = |x: Option<&NodeContact>| x.is_some_and(|x| x.edge);
+        Some(EnergyJump {
+            node: c.node,
+            body: c.body,
+            counterpart: c.counterpart,
+            kind,
+            energy_before: energy(before),
+            energy_after: energy(after),
+            depth_before: depth(before),
+            depth_after: depth(after),
+            edge_before: edge(before),
+            edge_after: edge(after),
+        })
     }
 
     /// Refuses a scanned state with a non-finite position or velocity, and a step in which
@@ -923,6 +1053,7 @@ impl ContactModel {
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,
             sheets: &self.sheets,
+            diagnose: self.jumps.is_some(),
         };
         self.chunks
             .par_iter_mut()
@@ -1085,6 +1216,7 @@ impl ContactModel {
                 sliding: false,
                 damping_force: [0.0; 3],
                 relative_velocity: [0.0; 3],
+                edge: false,
             });
         }
         contacts.sort_by_key(|c| c.key);

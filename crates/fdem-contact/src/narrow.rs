@@ -89,68 +89,77 @@ pub fn front_distance(node: [f64; 3], face: [[f64; 3]; 3], limit: f64) -> Option
     project_hand(node, [a, c, b], limit).map(|hit| hit.depth)
 }
 
+/// Barycentric weights of the closest point of the triangle `[a, b, c]` to `p` (Ericson,
+/// Real-Time Collision Detection, section 5.1.5: the Voronoi region of a vertex, an edge
+/// or the face). On an edge the weight of the opposite corner is exactly 0, at a vertex
+/// the other two are: the number of non-zero weights tells the region. A degenerate
+/// triangle gives weights that may not be finite.
+pub fn closest_point_weights(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return [1.0, 0.0, 0.0];
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    let vc = d1 * d4 - d3 * d2;
+    let vb = d5 * d2 - d1 * d6;
+    let va = d3 * d6 - d5 * d4;
+    if d3 >= 0.0 && d4 <= d3 {
+        [0.0, 1.0, 0.0]
+    } else if d6 >= 0.0 && d5 <= d6 {
+        [0.0, 0.0, 1.0]
+    } else if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        [1.0 - v, v, 0.0]
+    } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        [1.0 - w, 0.0, w]
+    } else if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        [0.0, 1.0 - w, w]
+    } else {
+        let denom = 1.0 / (va + vb + vc);
+        let v = vb * denom;
+        let w = vc * denom;
+        [1.0 - v - w, v, w]
+    }
+}
+
+/// The point of a triangle with barycentric `weights`.
+#[inline]
+pub fn point_at(weights: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|k| weights[0] * a[k] + weights[1] * b[k] + weights[2] * c[k])
+}
+
 /// Node behind a face's plane whose foot falls outside the triangle: the closest point of
 /// the triangle (on an edge or a vertex) stands in for the foot. Returns the hit with the
 /// depth = distance to that closest point (at most `depth_limit`), the face's unit normal
 /// and the closest point's barycentric weights; `None` for a node in front of the plane,
 /// farther than the limit, or a degenerate face.
 ///
-/// Node-to-face contact alone has holes at convex ridges: a vertex pressing on the ridge
-/// of a sheet folded over it projects outside both faces and passes through. The model
-/// uses this test for bodies declared as sheets (`ContactModel::set_sheet_bodies`), only
-/// when no face covers the node, and the closest-face rule then discards nodes that a
-/// nearer face has in front.
+/// Node-to-face contact alone has holes at convex ridges: a vertex pressing on a ridge
+/// projects outside both faces and passes through. (Sheets use the closest point of the
+/// whole sheet instead, `sheet::closest_contact`, which also covers ridges.)
 pub fn project_to_edge(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> Option<FaceHit> {
     let [a, b, c] = face;
-    let ab = sub(b, a);
-    let ac = sub(c, a);
-    let n = cross(ab, ac);
+    let n = cross(sub(b, a), sub(c, a));
     let nn = norm2(n);
     if nn <= 0.0 || nn.is_nan() {
         return None;
     }
-    let ap = sub(node, a);
-    if dot(ap, n) >= 0.0 {
+    if dot(sub(node, a), n) >= 0.0 {
         return None;
     }
-    // Closest point on a triangle (Ericson, Real-Time Collision Detection, 5.1.5), as
-    // barycentric weights.
-    let d1 = dot(ab, ap);
-    let d2 = dot(ac, ap);
-    let weights = if d1 <= 0.0 && d2 <= 0.0 {
-        [1.0, 0.0, 0.0]
-    } else {
-        let bp = sub(node, b);
-        let d3 = dot(ab, bp);
-        let d4 = dot(ac, bp);
-        let cp = sub(node, c);
-        let d5 = dot(ab, cp);
-        let d6 = dot(ac, cp);
-        let vc = d1 * d4 - d3 * d2;
-        let vb = d5 * d2 - d1 * d6;
-        let va = d3 * d6 - d5 * d4;
-        if d3 >= 0.0 && d4 <= d3 {
-            [0.0, 1.0, 0.0]
-        } else if d6 >= 0.0 && d5 <= d6 {
-            [0.0, 0.0, 1.0]
-        } else if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-            let v = d1 / (d1 - d3);
-            [1.0 - v, v, 0.0]
-        } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-            let w = d2 / (d2 - d6);
-            [1.0 - w, 0.0, w]
-        } else if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-            [0.0, 1.0 - w, w]
-        } else {
-            let denom = 1.0 / (va + vb + vc);
-            let v = vb * denom;
-            let w = vc * denom;
-            [1.0 - v - w, v, w]
-        }
-    };
-    let q = [0, 1, 2].map(|k| weights[0] * a[k] + weights[1] * b[k] + weights[2] * c[k]);
-    let depth = norm2(sub(node, q)).sqrt();
+    let weights = closest_point_weights(node, face);
+    let depth = norm2(sub(node, point_at(weights, face))).sqrt();
     if depth.is_nan() || depth > depth_limit {
         return None;
     }

@@ -12,27 +12,26 @@
 //! # Why it needs rules of its own
 //! Node-to-face contact reads "behind a face" as "inside the body", which holds for a solid
 //! particle, whose volume lies behind every face. Behind a sheet there is nothing: a sheet
-//! draped over angular particles folds over their edges and vertices, and that breaks the
-//! solid-body reading in three places:
-//! - **Edge test** ([`edge_contact`]): a particle vertex pressing on the convex ridge of a
-//!   sheet folded over it projects outside both faces of the ridge, so no face covers it
-//!   and node-to-face contact alone lets it pass through. For a sheet, a node that no face
-//!   covers is also tested against the faces' edges and vertices (the closest point,
-//!   [`crate::narrow::project_to_edge`]). Such a hit counts only where the node is behind
-//!   the planes of all the sheet's nearby faces (a ridge folded over it), not in front of
-//!   any of them within the hit's depth.
-//! - **Closest face** ([`covered_in_front`]): a particle vertex can sit in front of one
-//!   sheet face (on the particle side, outside) and far behind a steep neighbour face. A
-//!   face of the same body that covers the node from the front nearer than the hit's depth
-//!   means the node is outside there, and the hit is dropped. The rule applies to every
-//!   body, not only to sheets: on a convex particle it removes false contacts of nodes in
-//!   the wedge outside an edge ([`crate::narrow::front_distance`]).
+//! draped over angular particles folds over their edges and vertices, and the solid-body
+//! rule (the nearest face the node is behind with its foot inside) breaks there: a
+//! particle vertex pressing on the convex ridge of a sheet folded over it projects outside
+//! both faces of the ridge, and a vertex can sit in front of one sheet face and far behind
+//! a steep neighbour. Patching those holes with an edge test and filters made the contact
+//! switch on and off at finite depths, which creates and destroys stored energy.
+//! - **Closest point** ([`closest_contact`]): the depth of a node behind a sheet is its
+//!   distance to the closest point of the sheet, and the angle-weighted pseudo-normal at
+//!   that point says whether the node is behind. The depth is continuous over faces,
+//!   edges and vertices, and the force is the gradient of the stored energy.
 //! - **Fold depth** ([`Sheets::is_fold_artefact`]): a node found behind a sheet deeper than
 //!   the fold depth is not a tunnelling particle but a fold artefact (the sheet moves
-//!   slowly and has the edge test): the hit is discarded and counted in
+//!   slowly and the closest point follows it): the hit is discarded and counted in
 //!   [`ContactReport::discarded_sheet_hits`]. The caller checks containment by other
 //!   means (the triaxial test checks that every particle stays inside membrane and
 //!   platens at every output).
+//! - **Closest face** ([`covered_in_front`]) is the solid bodies' rule: a face of the same
+//!   body that covers the node from the front, nearer than the hit's depth, means the node
+//!   is outside there (on a convex particle it removes false contacts of nodes in the
+//!   wedge outside an edge, [`crate::narrow::front_distance`]).
 //!
 //! # Invariants
 //! - Declaring is additive: [`ContactModel::set_sheet_bodies`] marks bodies as sheets and
@@ -42,11 +41,10 @@
 //! - The rules concern the faces of a sheet, as the counterpart of another body's node; the
 //!   sheet's own nodes against particle faces are ordinary node-to-face contacts.
 //! - The broad phase keeps every face of a sheet within reach of a node as a candidate,
-//!   also in front of its plane (the edge test and its filter look at faces in front);
-//!   see the broad phase's `FRONT_SKINS`.
-//! - Per (node, other body) the rules run in a fixed order: nearest face behind, else (for
-//!   a sheet) the nearest edge; then the closest-face rule; then (for a sheet) the fold
-//!   depth. A discarded fold artefact is never a [`ContactError::PenetrationTooDeep`].
+//!   also in front of its plane (the closest point and its pseudo-normal need the faces
+//!   around it); see the broad phase's `FRONT_SKINS`.
+//! - Per (node, sheet) the closest point decides, then the fold depth. A discarded fold
+//!   artefact is never a [`ContactError::PenetrationTooDeep`].
 //! - Every test is exact on its own; the plane pre-filter
 //!   ([`Reach`](crate::detect::Reach)) only skips faces beyond its reach by more than its
 //!   slack, so it does not change the contacts.
@@ -58,8 +56,8 @@
 use crate::ContactError;
 use crate::detect::{FaceContact, FaceGroup};
 use crate::model::positive_length;
-use crate::narrow::{front_distance, project_to_edge};
-use crate::vec3::{cross, dot, norm, sub};
+use crate::narrow::{FaceHit, closest_point_weights, front_distance, point_at};
+use crate::vec3::{add, cross, dot, norm, norm2, scale, sub};
 
 /// Which bodies are sheets, and the fold depth they share.
 #[derive(Clone, Debug)]
@@ -111,50 +109,120 @@ impl Sheets {
     }
 }
 
-/// The edge test of a sheet that no face covers the node with: the nearest closest
-/// point on the edges and vertices of the group's faces that the node is behind, kept only
-/// where no nearby face of the sheet has the node in front of its plane within the hit's
-/// depth (so the node is behind the planes of all of them: a ridge folded over it).
-/// Nearby: the node's candidates, the faces within skin plus depth limit of it at the last
-/// broad-phase build.
-pub(crate) fn edge_contact(group: &FaceGroup<'_>) -> Option<FaceContact> {
+/// The contact of a node with a sheet: the closest point `q` of the sheet's nearby faces
+/// (the node's candidates of that body, which for a sheet include the faces in front of
+/// it), kept when the node lies behind the sheet there, with the depth `|x - q|` and the
+/// node pushed towards `q`.
+///
+/// Behind is read from the angle-weighted pseudo-normal at `q` (Baerentzen and Aanaes,
+/// "Signed distance computation using the angle weighted pseudonormal", IEEE TVCG 11,
+/// 2005): the face normal inside a face, the sum of the two faces' normals on an edge, and
+/// the normals of the faces around a vertex weighted by their angles there; the node is
+/// behind when `(x - q) . n_q < 0`. Unlike a foot-inside-the-face test, the depth is then
+/// continuous wherever the node moves over the faceted sheet (across edges and ridges),
+/// and the force `k_n d (q - x) / d` is minus the gradient of `k_n d^2 / 2` with respect to
+/// the node and, spread by the barycentric weights of `q`, to the face's nodes (the
+/// closest point is a minimum over the triangle, so its own motion drops out): contacts
+/// neither create nor destroy stored energy as they slide over the sheet.
+///
+/// A node behind the sheet within the depth limit is behind the plane of a face around
+/// its closest point (the node lies in the normal cone at `q`, and a vector in a polar cone
+/// with positive products with every generating normal would have a negative square), so
+/// a node in front of every plane has no contact and costs no more than the plane test.
+pub(crate) fn closest_contact(group: &FaceGroup<'_>) -> Option<FaceContact> {
     let (x, positions, reach) = (group.x, group.positions, group.reach);
-    let mut edge: Option<FaceContact> = None;
-    for (c, &s) in group.cands.iter().zip(group.signed) {
-        // `project_to_edge` needs the node behind the plane within the limit.
-        if !reach.within(s) {
+    let behind_some = group.signed.iter().any(|&s| s < 0.0 && reach.within(s));
+    if !behind_some {
+        return None;
+    }
+    // The closest point over the faces that can hold one within the search radius: a
+    // face whose plane is farther than the best distance so far cannot.
+    let mut radius = reach.depth_limit + reach.slack;
+    let mut best: Option<(f64, usize, [f64; 3])> = None;
+    for (i, (c, &s)) in group.cands.iter().zip(group.signed).enumerate() {
+        if s.abs() > radius {
             continue;
         }
-        let nodes = c.nodes.map(|j| j as usize);
-        let face = nodes.map(|j| positions[j]);
-        if let Some(hit) = project_to_edge(x, face, reach.depth_limit)
-            && edge.is_none_or(|b| hit.depth < b.hit.depth)
-        {
-            edge = Some(FaceContact {
-                triangle: c.triangle as usize,
-                nodes,
-                hit,
-            });
+        let face = c.nodes.map(|j| positions[j as usize]);
+        let w = closest_point_weights(x, face);
+        let d2 = norm2(sub(x, point_at(w, face)));
+        if d2.is_finite() && best.is_none_or(|b| d2 < b.0) {
+            best = Some((d2, i, w));
+            radius = radius.min(d2.sqrt() + reach.slack);
         }
     }
-    edge.filter(|e| !in_front_of_a_plane(group, e.hit.depth))
+    let (d2, i, weights) = best?;
+    let depth = d2.sqrt();
+    if depth > reach.depth_limit {
+        return None;
+    }
+    let cand = &group.cands[i];
+    let nodes = cand.nodes.map(|j| j as usize);
+    let q = point_at(weights, nodes.map(|j| positions[j]));
+    let pseudo = pseudo_normal(group, cand.nodes, weights);
+    let to_q = sub(q, x);
+    if dot(to_q, pseudo) <= 0.0 {
+        return None;
+    }
+    let normal = if depth > 0.0 {
+        scale(to_q, 1.0 / depth)
+    } else {
+        scale(pseudo, 1.0 / norm(pseudo))
+    };
+    Some(FaceContact {
+        triangle: cand.triangle as usize,
+        nodes,
+        hit: FaceHit {
+            depth,
+            normal,
+            weights,
+        },
+        edge: weights.contains(&0.0),
+    })
 }
 
-/// Whether a face of the group has the node in front of its plane by at most `depth`.
-fn in_front_of_a_plane(group: &FaceGroup<'_>, depth: f64) -> bool {
-    let (x, positions, slack) = (group.x, group.positions, group.reach.slack);
-    group.cands.iter().zip(group.signed).any(|(c, &s)| {
-        if s < -slack || s > depth + slack {
-            return false;
+/// The angle-weighted pseudo-normal of the sheet at the point of triangle `tri` (global
+/// node ids) with barycentric `weights`: the triangle's unit normal inside it; on an edge
+/// (one weight 0) the sum of the unit normals of the group's faces that share the edge;
+/// at a vertex (two weights 0) the sum over the group's faces around it of the unit
+/// normal times the face's angle there.
+fn pseudo_normal(group: &FaceGroup<'_>, tri: [u32; 3], weights: [f64; 3]) -> [f64; 3] {
+    let (mut corners, mut n_on) = ([0u32; 3], 0);
+    for (k, &w) in weights.iter().enumerate() {
+        if w != 0.0 {
+            corners[n_on] = tri[k];
+            n_on += 1;
         }
-        let [a, b, cc] = c.nodes.map(|j| positions[j as usize]);
-        let n = cross(sub(b, a), sub(cc, a));
+    }
+    let on = &corners[..n_on];
+    let mut sum = [0.0; 3];
+    for c in group.cands {
+        if !on.iter().all(|v| c.nodes.contains(v)) {
+            continue;
+        }
+        let face = c.nodes.map(|j| group.positions[j as usize]);
+        let n = cross(sub(face[1], face[0]), sub(face[2], face[0]));
         let len = norm(n);
-        len > 0.0 && {
-            let s = dot(sub(x, a), n) / len;
-            (0.0..=depth).contains(&s)
+        if !(len > 0.0 && len.is_finite()) {
+            continue;
         }
-    })
+        let weight = match on {
+            [v] => {
+                let k = c.nodes.iter().position(|j| j == v).unwrap_or(0);
+                corner_angle(face, k)
+            }
+            _ => 1.0,
+        };
+        sum = add(sum, scale(n, weight / len));
+    }
+    sum
+}
+
+/// The angle of the triangle `face` at its corner `k` (radians).
+fn corner_angle(face: [[f64; 3]; 3], k: usize) -> f64 {
+    let (a, b, c) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
+    let (u, v) = (sub(b, a), sub(c, a));
+    norm(cross(u, v)).atan2(dot(u, v))
 }
 
 /// The closest-face rule (every body): whether a face of the group covers the node from

@@ -73,14 +73,25 @@ impl StepBound {
     }
 
     /// The bound of a model: the elastic bound combined with the contact springs' (both
-    /// act on the particles' nodes), then the smallest of that and `others` (contributions
-    /// on nodes of their own, such as a membrane). What [`crate::ModelBuilder::build`] uses.
+    /// act on the particles' nodes), and each of `others` (the contributions' bounds, such
+    /// as a membrane's elements) combined with the contact springs too, then the smallest
+    /// of these. A contribution's nodes may be contact surface nodes (a membrane is
+    /// contacted by the particles it wraps), and the contact bound is the smallest over
+    /// all surface nodes, so combining is safe for every contribution; for one whose nodes
+    /// carry no contact it is pessimistic. What [`crate::ModelBuilder::build`] uses.
     pub fn of_model(
         elastic: Option<StepBound>,
         contact: Option<StepBound>,
         others: impl IntoIterator<Item = Option<StepBound>>,
     ) -> Option<StepBound> {
-        Self::smallest(std::iter::once(Self::combined(elastic, contact)).chain(others))
+        let with_contact = |b: Option<StepBound>| match b {
+            Some(b) => Self::combined(Some(b), contact.clone()),
+            None => None,
+        };
+        Self::smallest(
+            std::iter::once(Self::combined(elastic, contact.clone()))
+                .chain(others.into_iter().map(with_contact)),
+        )
     }
 }
 
@@ -397,10 +408,19 @@ mod tests {
     }
 
     #[test]
-    fn a_model_bound_is_the_smallest_of_the_combined_one_and_the_others() {
-        let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), [bound(2.5, "m")]);
+    fn a_model_bound_is_the_smallest_of_the_bounds_each_combined_with_contact() {
+        // Elastic 3 with contact 4 gives 2.4; a contribution's 6 with contact 4 gives
+        // 24 / sqrt(52) = 3.33: the elastic one sets the bound.
+        let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), [bound(6.0, "m")]);
         assert_eq!(m.unwrap().dt, 2.4);
+        // A contribution's 3 with contact 4 is 2.4 too, its 2 with contact 4 is
+        // 4 / sqrt(5): below the elastic one.
         let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), [bound(2.0, "m"), None]);
+        let m = m.unwrap();
+        assert!((m.dt - 4.0 / 5f64.sqrt()).abs() < 1e-15, "{}", m.dt);
+        assert!(m.source.starts_with('m') && m.source.contains('c'));
+        // Without contact the contributions' bounds stand alone.
+        let m = StepBound::of_model(bound(3.0, "e"), None, [bound(2.0, "m")]);
         assert_eq!(m, bound(2.0, "m"));
     }
 }

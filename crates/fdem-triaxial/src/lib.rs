@@ -52,6 +52,7 @@ mod compare;
 mod counts;
 mod error;
 mod file;
+mod jumps;
 mod loading;
 mod measure;
 mod membrane;
@@ -67,6 +68,7 @@ pub use compare::{COMPARISON_HEADER, FinishedRun, RunCost, comparison_row, write
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;
 pub use file::{FORMAT_VERSION, MAGIC};
+pub use jumps::{JUMPS_HEADER, JumpTotal};
 pub use loading::{
     TEST_DEPTH_LIMIT_MARGINS, TEST_ENERGY_TOLERANCE, TEST_FOLD_DEPTH_MARGINS, TEST_SKIN_FRACTION,
     TEST_WALL_BOTTOM, TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel, membrane_spec,

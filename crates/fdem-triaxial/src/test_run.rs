@@ -4,6 +4,7 @@
 //! `summary.json`, `contacts_peak.csv`, `pairs_peak.csv`, `eta.svg`, `eps_v.svg` and,
 //! on request, ParaView frames.
 
+use crate::jumps::{JumpTally, JumpTotal};
 use crate::loading::{TEST_WALL_MEMBRANE, TestModel};
 use crate::measure::{
     CurvePoint, CurveSummary, CurveWriter, Measurement, PeakTracker, Reference, summarize,
@@ -34,6 +35,10 @@ pub struct TestOptions {
     pub vtk: bool,
     /// Time step (s); default the preparation's.
     pub dt: Option<f64>,
+    /// Log every contact whose stored energy jumps by more than this (J) in one step to
+    /// `energy_jumps.csv`, with totals per phase and cause in the summary
+    /// (docs/TRIAXIAL.md, "Energy balance"); `None` (the default) logs nothing.
+    pub energy_jumps: Option<f64>,
 }
 
 /// The two stages of the test.
@@ -221,6 +226,9 @@ pub struct TestSummary {
     pub max_contact_depth: f64,
     /// Relative energy-balance error at the end.
     pub energy_balance_error: f64,
+    /// With `TestOptions::energy_jumps`: the stored-energy jumps per phase and cause.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub energy_jumps: Option<Vec<JumpTotal>>,
     /// The energy balance at the end (J): kinetic, strain, other stored (contact springs,
     /// membrane), dissipated by damping and friction, external work, balance error.
     pub energy: EnergyReport,
@@ -269,6 +277,7 @@ struct Run<'a> {
     discarded: (u64, u64),
     max_depth: f64,
     energy: EnergyWindows,
+    jumps: Option<JumpTally>,
 }
 
 /// The energy balance of a phase, checked by the solver's guard over windows (between
@@ -333,6 +342,21 @@ impl EnergyWindows {
 }
 
 impl Run<'_> {
+    /// Moves the contact model's logged stored-energy jumps of the last step into the
+    /// tally, while the log is on.
+    fn log_jumps(&mut self, phase: &'static str) -> Result<(), TriaxialError> {
+        let Some(tally) = self.jumps.as_mut() else {
+            return Ok(());
+        };
+        let time = self.model.sim.time();
+        let Some(contact) = self.model.sim.contact_mut() else {
+            return Ok(());
+        };
+        let jumps = contact.model_mut().take_energy_jumps();
+        let path = self.options.out_dir.join("energy_jumps.csv");
+        tally.add(phase, time, &jumps).map_err(io(&path))
+    }
+
     fn measurement(&self) -> Measurement {
         let sim = &self.model.sim;
         let energy = sim.energy();
@@ -523,6 +547,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
         discarded_membrane_hits_max: 0,
         max_contact_depth: 0.0,
         energy_balance_error: 0.0,
+        energy_jumps: None,
         energy: EnergyReport::default(),
         threads: rayon::current_num_threads(),
         outputs: Vec::new(),
@@ -533,6 +558,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
 const TEST_OUTPUTS: &[&str] = &[
     "consolidation.csv",
     "curve.csv",
+    "energy_jumps.csv",
     "contacts_peak.csv",
     "pairs_peak.csv",
     "eta.svg",
@@ -570,6 +596,22 @@ pub fn run_test(
         .map_err(|e| TriaxialError::io("clearing the earlier outputs of", dir, e))?;
     let sigma_0 = spec.confining_pressure;
     let d_min = spec.smallest_simulated_size();
+    let mut model = model;
+    let jumps = match options.energy_jumps {
+        Some(threshold) => {
+            if let Some(c) = model.sim.contact_mut() {
+                c.model_mut()
+                    .set_energy_jump_log(Some(threshold))
+                    .map_err(|e| TriaxialError::Test {
+                        phase: "setup",
+                        message: e.to_string(),
+                    })?;
+            }
+            let path = dir.join("energy_jumps.csv");
+            Some(JumpTally::create(&path).map_err(io(&path))?)
+        }
+        None => None,
+    };
     let vtk = if options.vtk {
         Some(VtkSeries::create(dir).map_err(out)?)
     } else {
@@ -587,6 +629,7 @@ pub fn run_test(
         discarded: (0, 0),
         max_depth: 0.0,
         energy: EnergyWindows::default(),
+        jumps,
     };
     let mut summary = initial_summary(&run);
     let mut points: Vec<CurvePoint> = Vec::new();
@@ -607,6 +650,11 @@ pub fn run_test(
         summary.discarded_membrane_hits_max,
     ) = run.discarded;
     summary.max_contact_depth = run.max_depth;
+    if let Some(tally) = run.jumps.as_mut() {
+        let path = run.options.out_dir.join("energy_jumps.csv");
+        summary.energy_jumps = Some(tally.finish().map_err(io(&path))?);
+        summary.outputs.push("energy_jumps.csv".into());
+    }
     summary.energy = run.energy.report(&run.model.sim);
     summary.energy_balance_error = {
         let mut windows = run.energy;
@@ -730,6 +778,7 @@ fn consolidate(
         run.model
             .set_top_velocity(-v_max * error.clamp(-1.0, 1.0))?;
         run.model.sim.advance().map_err(solver("consolidation"))?;
+        run.log_jumps("consolidation")?;
         steps += 1;
         if steps == CALIBRATION_STEPS {
             calibrate(&mut summary.plan, wall, steps);
@@ -901,6 +950,9 @@ fn shear(
     let outcome: Result<bool, TriaxialError> = loop {
         if let Err(e) = run.model.sim.advance() {
             break Err(solver("shear")(e));
+        }
+        if let Err(e) = run.log_jumps("shear") {
+            break Err(e);
         }
         steps += 1;
         let eps_a = crate::measure::axial_strain(reference.h0, run.model.height());

@@ -59,6 +59,10 @@ pub struct TriaxialArgs {
     /// Also write ParaView frames of particles, membrane and platens.
     #[arg(long)]
     vtk: bool,
+    /// Log every contact whose stored energy jumps by more than this many joules in one
+    /// step, with its cause, to energy_jumps.csv (totals in summary.json)
+    #[arg(long, value_name = "J")]
+    energy_jumps: Option<f64>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -259,6 +263,11 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
             fdem_triaxial::MAX_TARGET_STRAIN
         );
     }
+    if let Some(j) = args.energy_jumps
+        && !(j.is_finite() && j >= 0.0)
+    {
+        bail!("--energy-jumps must be a finite energy >= 0 (J), got {j}");
+    }
     super::check_output_dir(&args.out)?;
     let interrupt = super::interrupt_flag();
     let start = Instant::now();
@@ -272,6 +281,7 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
         out_dir: args.out.clone(),
         vtk: args.vtk,
         dt: None,
+        energy_jumps: args.energy_jumps,
     };
     let result = run_test(&prepared, &options, &mut progress, &interrupt);
     if let Some(bar) = progress.bar.take() {
