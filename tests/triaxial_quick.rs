@@ -97,6 +97,21 @@ fn quick_triaxial_test_runs_end_to_end() {
     assert_eq!(summary.particles_outside, 0);
     assert!(summary.escape_checks > 10);
 
+    // The energy balance closes in both phases: the accumulated error at most 1 % of the
+    // phase's energy scale (docs/TRIAXIAL.md, "Energy balance"), with no membrane hit
+    // discarded as a fold artefact.
+    assert!(
+        c.energy_balance_error <= 0.01,
+        "consolidation balance error {}",
+        c.energy_balance_error
+    );
+    assert!(
+        summary.energy_balance_error <= 0.01,
+        "shear balance error {}",
+        summary.energy_balance_error
+    );
+    assert_eq!(summary.discarded_membrane_hits, 0);
+
     // Step 2: the curve.
     let curve = read_curve(out.join("curve.csv")).unwrap();
     let last = curve.last().unwrap();

@@ -124,6 +124,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) sheets: &'a Sheets,
     /// Whether to record the rejections of the stored-energy jump log.
     pub(crate) diagnose: bool,
+    /// Whether an evaluation came before this one (its contacts are `previous`).
+    pub(crate) evaluated: bool,
 }
 
 impl Ctx<'_> {
@@ -225,7 +227,7 @@ impl Ctx<'_> {
                 reach,
             };
             start = end;
-            match self.group_contact(k, v, &group, &mut scratch.sums)? {
+            match self.group_contact(k, v, &group, &mut scratch.sums, cursor)? {
                 Ok(contact) => self.push_face(k, v, body, contact, scratch, cursor)?,
                 Err(reason) if self.diagnose => scratch.rejections.push(Rejection {
                     key: history_key(k, Counterpart::Body(body)),
@@ -247,11 +249,16 @@ impl Ctx<'_> {
         v: [f64; 3],
         group: &FaceGroup<'_>,
         sums: &mut Sums,
+        cursor: &mut usize,
     ) -> Result<Result<FaceContact, Reason>, ContactError> {
         self.check_tunnelling(k, v, group)?;
         let is_sheet = self.sheets.is_sheet(group.body);
+        let had_contact = is_sheet
+            && self
+                .previous(history_key(k, Counterpart::Body(group.body)), cursor)
+                .is_some();
         let best = if is_sheet {
-            sheet::closest_contact(group)
+            sheet::closest_contact(group, had_contact)
         } else {
             self.nearest_face(group)
         };
@@ -269,6 +276,18 @@ impl Ctx<'_> {
         if self.sheets.is_fold_artefact(group.body, best.hit.depth) {
             sums.discarded += 1;
             return Ok(Err(Reason::FoldDiscard));
+        }
+        // A new contact with a sheet starts at its surface: the node and the sheet move
+        // less than half the margin relative to each other in one step (the tunnelling
+        // guard), so a new hit deeper than that is a fold artefact too (a closest point that
+        // moved to another layer of a folded sheet), unless no evaluation came before.
+        if is_sheet
+            && !had_contact
+            && self.evaluated
+            && best.hit.depth > TUNNELLING_FRACTION * self.margin
+        {
+            sums.discarded += 1;
+            return Ok(Err(Reason::DeepStart));
         }
         Ok(Ok(best))
     }

@@ -38,6 +38,9 @@ pub enum Reason {
     ClosestFace,
     /// A hit on a sheet deeper than the fold depth, discarded as a fold artefact.
     FoldDiscard,
+    /// A new hit on a sheet deeper than a node can move in one step, discarded as a fold
+    /// artefact.
+    DeepStart,
     /// The counterpart had no candidate face near the node (broad phase).
     NoCandidate,
     /// A wall the node is in front of.
@@ -51,6 +54,7 @@ impl Reason {
             Reason::NoFaceBehind => "no_face_behind",
             Reason::ClosestFace => "closest_face",
             Reason::FoldDiscard => "fold_discard",
+            Reason::DeepStart => "deep_start",
             Reason::NoCandidate => "no_candidate",
             Reason::InFrontOfWall => "in_front_of_wall",
         }

@@ -298,6 +298,9 @@ pub struct ContactModel {
     sheets: Sheets,
     /// The stored-energy jump log, while it is on (`set_energy_jump_log`).
     jumps: Option<JumpLog>,
+    /// Evaluations so far (`add_forces` calls that succeeded): before the first, a sheet
+    /// contact may start at any depth (an assembled or restored state).
+    evaluations: u64,
 }
 
 /// The smallest spring-dashpot bound over the surface nodes (see
@@ -421,6 +424,7 @@ impl ContactModel {
             surface,
             sheets: Sheets::default(),
             jumps: None,
+            evaluations: 0,
         })
     }
 
@@ -811,6 +815,7 @@ impl ContactModel {
         let before = self.jumps.is_some().then(|| self.contacts.clone());
         let report = self.apply_forces(forces, rebuilt);
         self.report = report;
+        self.evaluations += 1;
         if let Some(before) = before {
             self.log_jumps(&before);
         }
@@ -1054,6 +1059,7 @@ impl ContactModel {
             check_walls: guards.check_walls,
             sheets: &self.sheets,
             diagnose: self.jumps.is_some(),
+            evaluated: self.evaluations > 0,
         };
         self.chunks
             .par_iter_mut()

@@ -54,6 +54,7 @@
 //! [`ContactError::PenetrationTooDeep`]: crate::ContactError::PenetrationTooDeep
 
 use crate::ContactError;
+use crate::broad::Candidate;
 use crate::detect::{FaceContact, FaceGroup};
 use crate::model::positive_length;
 use crate::narrow::{FaceHit, closest_point_weights, front_distance, point_at};
@@ -129,48 +130,93 @@ impl Sheets {
 /// its closest point (the node lies in the normal cone at `q`, and a vector in a polar cone
 /// with positive products with every generating normal would have a negative square), so
 /// a node in front of every plane has no contact and costs no more than the plane test.
-pub(crate) fn closest_contact(group: &FaceGroup<'_>) -> Option<FaceContact> {
-    let (x, positions, reach) = (group.x, group.positions, group.reach);
+///
+/// Where the sheet lies folded flat onto itself (two layers with opposite normals at the
+/// same place), the closest point is a tie between the layers and its side is decided by
+/// round-off. Ties (distances within [`TIE`] of the closest) are resolved by the history,
+/// so that the side changes only through the sheet: a node that was in contact stays
+/// behind if any tied face has it behind; a node that was not stays in front if any tied
+/// face has it in front.
+pub(crate) fn closest_contact(group: &FaceGroup<'_>, had_contact: bool) -> Option<FaceContact> {
+    let reach = group.reach;
     let behind_some = group.signed.iter().any(|&s| s < 0.0 && reach.within(s));
     if !behind_some {
         return None;
     }
-    // The closest point over the faces that can hold one within the search radius: a
-    // face whose plane is farther than the best distance so far cannot.
+    let closest = closest_distance(group)?;
+    if closest > reach.depth_limit {
+        return None;
+    }
+    // The faces whose closest points tie with the closest, each with its side.
+    let tie = closest * (1.0 + TIE) + reach.slack;
+    let mut chosen: Option<FaceContact> = None;
+    for (c, &s) in group.cands.iter().zip(group.signed) {
+        if s.abs() > tie {
+            continue;
+        }
+        let Some(contact) = face_contact(group, c) else {
+            continue;
+        };
+        if contact.hit.depth > tie {
+            continue;
+        }
+        let behind = contact.hit.depth == 0.0 || dot_behind(group, &contact);
+        match (behind, had_contact) {
+            (false, false) => return None,
+            (false, true) => {}
+            (true, _) => {
+                if chosen.is_none_or(|b| contact.hit.depth < b.hit.depth) {
+                    chosen = Some(contact);
+                }
+            }
+        }
+    }
+    chosen
+}
+
+/// Relative tolerance of a tie between the closest points of two faces of a sheet.
+pub(crate) const TIE: f64 = 1e-3;
+
+/// The distance from the node to the closest point of the group's faces, searching only
+/// faces whose plane is nearer than the best distance so far.
+fn closest_distance(group: &FaceGroup<'_>) -> Option<f64> {
+    let (x, positions, reach) = (group.x, group.positions, group.reach);
     let mut radius = reach.depth_limit + reach.slack;
-    let mut best: Option<(f64, usize, [f64; 3])> = None;
-    for (i, (c, &s)) in group.cands.iter().zip(group.signed).enumerate() {
+    let mut best: Option<f64> = None;
+    for (c, &s) in group.cands.iter().zip(group.signed) {
         if s.abs() > radius {
             continue;
         }
         let face = c.nodes.map(|j| positions[j as usize]);
-        let w = closest_point_weights(x, face);
-        let d2 = norm2(sub(x, point_at(w, face)));
-        if d2.is_finite() && best.is_none_or(|b| d2 < b.0) {
-            best = Some((d2, i, w));
+        let d2 = norm2(sub(x, point_at(closest_point_weights(x, face), face)));
+        if d2.is_finite() && best.is_none_or(|b| d2 < b * b) {
+            best = Some(d2.sqrt());
             radius = radius.min(d2.sqrt() + reach.slack);
         }
     }
-    let (d2, i, weights) = best?;
-    let depth = d2.sqrt();
-    if depth > reach.depth_limit {
-        return None;
-    }
-    let cand = &group.cands[i];
-    let nodes = cand.nodes.map(|j| j as usize);
-    let q = point_at(weights, nodes.map(|j| positions[j]));
-    let pseudo = pseudo_normal(group, cand.nodes, weights);
-    let to_q = sub(q, x);
-    if dot(to_q, pseudo) <= 0.0 {
+    best
+}
+
+/// The contact of the node with the closest point of one face: depth `|x - q|`, the node
+/// pushed towards `q` (along the face's pseudo-normal where `q = x`).
+fn face_contact(group: &FaceGroup<'_>, c: &Candidate) -> Option<FaceContact> {
+    let x = group.x;
+    let nodes = c.nodes.map(|j| j as usize);
+    let face = nodes.map(|j| group.positions[j]);
+    let weights = closest_point_weights(x, face);
+    let to_q = sub(point_at(weights, face), x);
+    let depth = norm(to_q);
+    if !depth.is_finite() {
         return None;
     }
     let normal = if depth > 0.0 {
         scale(to_q, 1.0 / depth)
     } else {
+        let pseudo = pseudo_normal(group, c.nodes, weights);
         scale(pseudo, 1.0 / norm(pseudo))
     };
     Some(FaceContact {
-        triangle: cand.triangle as usize,
+        triangle: c.triangle as usize,
         nodes,
         hit: FaceHit {
             depth,
@@ -179,6 +225,14 @@ pub(crate) fn closest_contact(group: &FaceGroup<'_>) -> Option<FaceContact> {
         },
         edge: weights.contains(&0.0),
     })
+}
+
+/// Whether the node is behind the sheet at the contact's closest point: `(q - x) . n_q > 0`
+/// with the pseudo-normal `n_q` there.
+fn dot_behind(group: &FaceGroup<'_>, contact: &FaceContact) -> bool {
+    let tri = contact.nodes.map(|j| j as u32);
+    let pseudo = pseudo_normal(group, tri, contact.hit.weights);
+    dot(contact.hit.normal, pseudo) > 0.0
 }
 
 /// The angle-weighted pseudo-normal of the sheet at the point of triangle `tri` (global

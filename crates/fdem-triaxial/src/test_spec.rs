@@ -192,8 +192,8 @@ pub struct TestSection {
     pub residual_window: f64,
     /// Fraction of the assembled test's stable bound (the smallest of the elements'
     /// eigenvalue bounds, the contact springs and the membrane elements) used as the time
-    /// step, in (0, 1]. Default 0.8 for deformable particles and 0.2 for rigid ones
-    /// (docs/TRIAXIAL.md, "Time step"; [`TestSection::dt_safety_for`]).
+    /// step, in (0, 1]. Default [`TEST_DT_SAFETY`] for both models (docs/TRIAXIAL.md,
+    /// "Time step"; [`TestSection::dt_safety`]).
     #[serde(
         default,
         deserialize_with = "fraction_opt",
@@ -225,14 +225,9 @@ impl Default for TestSection {
 }
 
 impl TestSection {
-    /// The test's `dt_safety`: the given one, else the default for a specimen with or
-    /// without rigid particles.
-    pub fn dt_safety_for(&self, has_rigid: bool) -> f64 {
-        self.dt_safety.unwrap_or(if has_rigid {
-            TEST_DT_SAFETY_RIGID
-        } else {
-            TEST_DT_SAFETY_DEFORMABLE
-        })
+    /// The test's `dt_safety`: the given one, else [`TEST_DT_SAFETY`].
+    pub fn dt_safety(&self) -> f64 {
+        self.dt_safety.unwrap_or(TEST_DT_SAFETY)
     }
 
     /// Cross-field checks that deserialization cannot make alone (for definitions built
@@ -271,13 +266,11 @@ fn default_membrane_damping() -> f64 {
 fn default_target_strain() -> f64 {
     0.15
 }
-/// Default `test.dt_safety` of deformable particles: the elastic bound sets the step and
-/// the assembled particle's bound lies above its elements' (docs/TRIAXIAL.md, "Time step").
-pub const TEST_DT_SAFETY_DEFORMABLE: f64 = 0.8;
-/// Default `test.dt_safety` of rigid particles: the contact and membrane bounds set the
-/// step, and above a fraction of it membrane nodes shoot through the faceted rigid
-/// surfaces during shear (docs/TRIAXIAL.md, "Time step", has the fractions that failed).
-pub const TEST_DT_SAFETY_RIGID: f64 = 0.2;
+/// Default `test.dt_safety`, for deformable and rigid particles alike: the bound combines
+/// every stiffness on a node (elements or membrane with the contact springs), and the
+/// deformable particles' assembled bound lies above their elements' (docs/TRIAXIAL.md,
+/// "Time step").
+pub const TEST_DT_SAFETY: f64 = 0.8;
 fn default_inertial_number() -> f64 {
     1e-3
 }
