@@ -85,8 +85,8 @@ pub use prepare::{
 };
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,
-    ORIGINAL_SIZE, PRESETS, PreparationSection, Preset, SERIES_SIZE, Simulated, SizeClass,
-    SpecimenMesh, SpecimenSpec, default_material,
+    MAX_OVERLAP_DEFORMABLE, MAX_OVERLAP_RIGID, ORIGINAL_SIZE, PRESETS, PreparationSection, Preset,
+    SERIES_SIZE, Simulated, SizeClass, SpecimenMesh, SpecimenSpec, default_material,
 };
 pub use test_run::{
     ConsolidationResult, PhaseCost, SilentTest, TestObserver, TestOptions, TestPhase, TestPlan,

@@ -635,7 +635,7 @@ fn checks(spec: &SpecimenSpec, sim: &Simulation, d_min: f64) -> Checks {
             .map(|n| n.depth)
             .fold(0.0, f64::max)
     });
-    let overlap_limit = spec.preparation.max_overlap * d_min;
+    let overlap_limit = spec.max_overlap() * d_min;
     let unbalanced = unbalanced_force_ratio(sim, spec.confining_pressure * d_min * d_min);
     let limit = spec.preparation.unbalanced_force;
     let mut failures = Vec::new();

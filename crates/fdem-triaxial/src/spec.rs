@@ -100,9 +100,15 @@ pub struct PreparationSection {
     #[serde(default = "default_clearance", deserialize_with = "fraction")]
     pub clearance: f64,
     /// Largest accepted penetration (between particles, and into the walls) at the end,
-    /// as a fraction of the smallest simulated diameter, in (0, 1]. Default 0.02.
-    #[serde(default = "default_max_overlap", deserialize_with = "fraction")]
-    pub max_overlap: f64,
+    /// as a fraction of the smallest simulated diameter, in (0, 1]. Default
+    /// [`MAX_OVERLAP_DEFORMABLE`], or [`MAX_OVERLAP_RIGID`] for a specimen with rigid
+    /// particles ([`SpecimenSpec::max_overlap`]).
+    #[serde(
+        default,
+        deserialize_with = "fraction_opt",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub max_overlap: Option<f64>,
     /// Settling ends when the unbalanced-force ratio falls to this value, in (0, 1].
     /// Default 0.02.
     #[serde(default = "default_unbalanced", deserialize_with = "fraction")]
@@ -131,7 +137,7 @@ impl Default for PreparationSection {
             friction: 0.0,
             dt_safety: default_dt_safety(),
             clearance: default_clearance(),
-            max_overlap: default_max_overlap(),
+            max_overlap: None,
             unbalanced_force: default_unbalanced(),
             settle_time: None,
             check_interval: default_check_interval(),
@@ -374,9 +380,13 @@ fn default_dt_safety() -> f64 {
 fn default_clearance() -> f64 {
     0.02
 }
-fn default_max_overlap() -> f64 {
-    0.02
-}
+/// Default `preparation.max_overlap` of deformable specimens.
+pub const MAX_OVERLAP_DEFORMABLE: f64 = 0.02;
+/// Default `preparation.max_overlap` of specimens with rigid particles: a rigid faceted
+/// particle resting on a platen bears on one vertex or edge, whose nodes carry all its
+/// load and press deeper than a deformable particle's flattened contact
+/// (docs/SPECIMENS.md, "Rigid specimens", has the measurement).
+pub const MAX_OVERLAP_RIGID: f64 = 0.04;
 fn default_unbalanced() -> f64 {
     0.02
 }
@@ -407,6 +417,20 @@ pub struct Simulated {
     pub preparation_friction: f64,
     /// Every parameter changed by exact scaling: `(key, quantity, factor)`.
     pub scaled: Vec<(String, &'static str, f64)>,
+}
+
+impl SpecimenSpec {
+    /// The preparation's `max_overlap`: the given one, else the default of the specimen's
+    /// model ([`MAX_OVERLAP_RIGID`] when any particle is rigid, [`MAX_OVERLAP_DEFORMABLE`]
+    /// otherwise).
+    pub fn max_overlap(&self) -> f64 {
+        let rigid = self.counts().is_ok_and(|c| c.rigid_particles > 0);
+        self.preparation.max_overlap.unwrap_or(if rigid {
+            MAX_OVERLAP_RIGID
+        } else {
+            MAX_OVERLAP_DEFORMABLE
+        })
+    }
 }
 
 impl SpecimenSpec {
@@ -652,7 +676,9 @@ impl SpecimenSpec {
         single("preparation.friction", check_non_negative(p.friction))?;
         single("preparation.dt_safety", check_fraction(p.dt_safety))?;
         single("preparation.clearance", check_fraction(p.clearance))?;
-        single("preparation.max_overlap", check_fraction(p.max_overlap))?;
+        if let Some(m) = p.max_overlap {
+            single("preparation.max_overlap", check_fraction(m))?;
+        }
         single(
             "preparation.unbalanced_force",
             check_fraction(p.unbalanced_force),
