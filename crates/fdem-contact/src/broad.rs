@@ -154,18 +154,20 @@ pub(crate) struct BroadPhase {
     pub(crate) cell_size: f64,
     /// Surface node positions at the last build.
     pub(crate) reference: Vec<[f64; 3]>,
-    /// Candidates of surface node `k`: `cand[cand_start[k]..cand_start[k + 1]]`.
-    pub(crate) cand_start: Vec<usize>,
-    /// Candidate faces, sorted by (owner body, triangle) per node.
-    pub(crate) cand: Vec<Candidate>,
+    /// Candidate faces per chunk of [`CHUNK`] surface nodes, sorted by (owner body,
+    /// triangle) per node: the query writes each chunk's list in parallel and the narrow
+    /// phase reads it in place (no serial gather into one array).
+    chunk_cands: Vec<Vec<Candidate>>,
+    /// Per chunk, the row starts of its nodes in `chunk_cands` (one more than its nodes).
+    chunk_starts: Vec<Vec<usize>>,
+    /// Number of candidate pairs of the last build.
+    pub(crate) pairs: usize,
     boxes: Vec<[f64; 6]>,
     layout: Layout,
     table: CellTable,
     cell_start: Vec<usize>,
     cell_cursor: Vec<usize>,
     cell_tris: Vec<u32>,
-    chunk_tris: Vec<Vec<u32>>,
-    chunk_counts: Vec<Vec<u32>>,
 }
 
 /// How cells are numbered: a dense box of cells when the occupied region is compact
@@ -284,7 +286,7 @@ impl BroadPhase {
         let front = FRONT_SKINS * skin + (e - reach);
         self.front = front;
         self.query(frame, positions, surface, two_sided);
-        self.gather(surface);
+        self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
         self.built = true;
         self.builds += 1;
     }
@@ -423,8 +425,8 @@ impl BroadPhase {
     }
 
     /// Query pass, parallel over fixed chunks of surface nodes: each chunk lists the
-    /// candidate triangles of its nodes (sorted by owner body, then triangle) and their
-    /// counts.
+    /// candidate faces of its nodes (sorted by owner body, then triangle) and their row
+    /// starts.
     fn query(
         &mut self,
         frame: Frame,
@@ -434,8 +436,10 @@ impl BroadPhase {
     ) {
         let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
-        self.chunk_tris.resize_with(n_chunks, Vec::new);
-        self.chunk_counts.resize_with(n_chunks, Vec::new);
+        self.chunk_cands.resize_with(n_chunks, Vec::new);
+        self.chunk_cands.truncate(n_chunks);
+        self.chunk_starts.resize_with(n_chunks, Vec::new);
+        self.chunk_starts.truncate(n_chunks);
         let reference = &self.reference;
         // A node farther than the enlargement from the triangle itself cannot reach it
         // before the next build (every point of the face moves at most half the skin, as
@@ -450,13 +454,14 @@ impl BroadPhase {
         let layout = self.layout;
         let cell_start = &self.cell_start;
         let cell_tris = &self.cell_tris;
-        self.chunk_tris
+        self.chunk_cands
             .par_iter_mut()
-            .zip(self.chunk_counts.par_iter_mut())
+            .zip(self.chunk_starts.par_iter_mut())
             .enumerate()
-            .for_each(|(chunk, (tris, counts))| {
+            .for_each(|(chunk, (tris, starts))| {
                 tris.clear();
-                counts.clear();
+                starts.clear();
+                starts.push(0);
                 let start = chunk * CHUNK;
                 let end = (start + CHUNK).min(n_surface);
                 for (offset, &x) in reference[start..end].iter().enumerate() {
@@ -477,42 +482,30 @@ impl BroadPhase {
                             if d2 <= reach2
                                 && (d2 <= front2 || two_sided(owner) || behind_plane(x, face))
                             {
-                                tris.push(t);
+                                tris.push(Candidate {
+                                    // Node ids fit in u32: ContactSurface::validate checks
+                                    // the node count.
+                                    nodes: surface.triangles[tu].map(|i| i as u32),
+                                    triangle: t,
+                                    body: owner,
+                                });
                             }
                         }
                     }
                     let mine = &mut tris[before..];
-                    if !mine.is_sorted_by_key(|&t| surface.triangle_body[t as usize]) {
-                        mine.sort_unstable_by_key(|&t| (surface.triangle_body[t as usize], t));
+                    if !mine.is_sorted_by_key(|c| c.body) {
+                        mine.sort_unstable_by_key(|c| (c.body, c.triangle));
                     }
-                    counts.push((tris.len() - before) as u32);
+                    starts.push(tris.len());
                 }
             });
-    }
-
-    /// Joins the chunks' lists into the candidate rows of every surface node.
-    fn gather(&mut self, surface: &ContactSurface) {
-        self.cand_start.clear();
-        self.cand.clear();
-        let mut total = 0usize;
-        self.cand_start.push(0);
-        for (tris, counts) in self.chunk_tris.iter().zip(&self.chunk_counts) {
-            for &c in counts {
-                total += c as usize;
-                self.cand_start.push(total);
-            }
-            self.cand.extend(tris.iter().map(|&t| Candidate {
-                // Node ids fit in u32: ContactSurface::validate checks the node count.
-                nodes: surface.triangles[t as usize].map(|i| i as u32),
-                triangle: t,
-                body: surface.triangle_body[t as usize],
-            }));
-        }
     }
 
     /// Candidate faces of surface node `k`.
     #[inline]
     pub(crate) fn candidates(&self, k: usize) -> &[Candidate] {
-        &self.cand[self.cand_start[k]..self.cand_start[k + 1]]
+        let (chunk, i) = (k / CHUNK, k % CHUNK);
+        let starts = &self.chunk_starts[chunk];
+        &self.chunk_cands[chunk][starts[i]..starts[i + 1]]
     }
 }

@@ -638,7 +638,7 @@ impl ContactModel {
     /// triangle's plane, or within [`ContactModel::candidate_front_reach`] of the
     /// triangle, or the triangle belongs to a sheet ([`ContactModel::set_sheet_bodies`]).
     pub fn candidate_pairs(&self) -> Vec<(usize, usize)> {
-        let mut out = Vec::with_capacity(self.broad.cand.len());
+        let mut out = Vec::with_capacity(self.broad.pairs);
         if !self.broad.built {
             return out;
         }
@@ -1076,7 +1076,7 @@ impl ContactModel {
     fn apply_forces(&mut self, forces: &mut [[f64; 3]], rebuilt: bool) -> ContactReport {
         let mut report = ContactReport {
             rebuilt,
-            candidate_pairs: self.broad.cand.len(),
+            candidate_pairs: self.broad.pairs,
             ..ContactReport::default()
         };
         for f in &mut self.wall_forces {
