@@ -646,3 +646,82 @@ fn extreme_values_are_refused_or_run_without_panic() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// Every array of the scene schema at every length from 0 to 5: the scene is accepted
+/// only at the array's own length, and otherwise refused with one line naming the key
+/// and the length it needs.
+#[test]
+fn arrays_of_every_length_are_refused_unless_whole() {
+    // (key, its length, the scene text with the array replaced by `ARRAY`).
+    let base = |gravity: &str,
+                center: &str,
+                velocity: &str,
+                spin: &str,
+                q: &str,
+                axes: &str,
+                point: &str,
+                normal: &str,
+                wall_v: &str| {
+        format!(
+            "[simulation]\nduration = 1.0e-6\ndt = 1.0e-8\ngravity = {gravity}\n\
+             [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n\
+             [[particle]]\ndiameter = 0.015\ncenter = {center}\nvelocity = {velocity}\n\
+             angular_velocity = {spin}\norientation = {q}\n\
+             mesh = {{ level = 1, order = \"linear\", axes = {axes} }}\n\
+             [contact]\nnormal_penalty = 1.8e11\n\
+             [[wall]]\ntype = \"plane\"\npoint = {point}\nnormal = {normal}\nvelocity = {wall_v}\n"
+        )
+    };
+    let whole = [
+        "[0.0, 0.0, 0.0]",
+        "[0.0, 0.0, 0.0]",
+        "[0.0, 0.0, 0.0]",
+        "[0.0, 0.0, 0.0]",
+        "[1.0, 0.0, 0.0, 0.0]",
+        "[1.0, 1.0, 1.0]",
+        "[0.0, 0.0, -0.0076]",
+        "[0.0, 0.0, 1.0]",
+        "[0.0, 0.0, 0.0]",
+    ];
+    let keys = [
+        "gravity",
+        "center",
+        "velocity",
+        "angular_velocity",
+        "orientation",
+        "axes",
+        "point",
+        "normal",
+        "velocity",
+    ];
+    let text = |a: &[String]| {
+        base(
+            &a[0], &a[1], &a[2], &a[3], &a[4], &a[5], &a[6], &a[7], &a[8],
+        )
+    };
+    let ordinary: Vec<String> = whole.iter().map(|s| s.to_string()).collect();
+    Scene::from_toml_str(&text(&ordinary), "scene.toml").expect("the ordinary scene is valid");
+    for (i, key) in keys.iter().enumerate() {
+        let needed = whole[i].matches(',').count() + 1;
+        for len in 0..=5 {
+            let values: Vec<&str> = (0..len)
+                .map(|j| if j == 0 && i == 4 { "1.0" } else { "0.5" })
+                .collect();
+            let mut arrays = ordinary.clone();
+            arrays[i] = format!("[{}]", values.join(", "));
+            let result = Scene::from_toml_str(&text(&arrays), "scene.toml");
+            if len == needed {
+                continue;
+            }
+            let e = result
+                .err()
+                .unwrap_or_else(|| panic!("{key} of length {len} accepted"))
+                .to_string();
+            assert_eq!(e.lines().count(), 1, "{e}");
+            assert!(
+                e.contains(key) && e.contains(&needed.to_string()),
+                "{key}, {len}: {e}"
+            );
+        }
+    }
+}
