@@ -652,7 +652,7 @@ fn extreme_values_are_refused_or_run_without_panic() {
 /// and the length it needs.
 #[test]
 fn arrays_of_every_length_are_refused_unless_whole() {
-    // (key, its length, the scene text with the array replaced by `ARRAY`).
+    // The scene with its nine arrays given as TOML text, in the order of `keys`.
     let base = |gravity: &str,
                 center: &str,
                 velocity: &str,
