@@ -136,6 +136,30 @@ fn quick_triaxial_test_runs_end_to_end() {
     let sigma = last.axial_force * last.height / last.volume;
     assert!((sigma - last.sigma_a).abs() <= 1e-9 * sigma.abs());
 
+    // The lateral stress the membrane applies, measured from its contacts with the
+    // particles (docs/TRIAXIAL.md, "Lateral stress"): measured 0.941 to 1.139 of sigma_0
+    // over the shear (mean 1.044), 0.941 at the end of consolidation; the band leaves room
+    // for changes of the contact law. eta_measured is eq 15 with sigma_r on every row.
+    let sigma_0 = spec.confining_pressure;
+    for row in &curve {
+        let ratio = row.sigma_r / sigma_0;
+        assert!(
+            (0.85..=1.3).contains(&ratio),
+            "sigma_r / sigma_0 {ratio} at {row:?}"
+        );
+        let eta = 3.0 * (row.sigma_a - row.sigma_r) / (row.sigma_a + 2.0 * row.sigma_r);
+        assert!((eta - row.eta_measured).abs() <= 1e-12, "{row:?}");
+    }
+    let lateral = summary.lateral_stress.as_ref().unwrap();
+    assert!((0.95..=1.15).contains(&lateral.mean), "{lateral:?}");
+    let consolidated = c.lateral_stress_ratio;
+    assert!((0.85..=1.15).contains(&consolidated), "{consolidated}");
+    // Measured: peak eta 1.671, peak eta_measured 1.626 at the same row.
+    assert!(
+        (peak.peak_eta_measured - peak.peak_eta).abs() < 0.2,
+        "{peak:?}"
+    );
+
     // The peak snapshot clusters into particle contacts that match the ground truth.
     let files = locate_snapshot(out, SnapshotChoice::Peak).unwrap();
     let analysis = analyse(&files, &AnalysisOptions::default()).unwrap();
@@ -145,10 +169,15 @@ fn quick_triaxial_test_runs_end_to_end() {
     let recall = v.body_pairs.recall.unwrap();
     let error = v.body_pairs.max_force_error.unwrap();
     eprintln!(
-        "quick: peak eta {:.3} at {:.2} %, recall {recall:.4}, max force error {error:.2e}, \
+        "quick: peak eta {:.3} at {:.2} % (eta_measured {:.3}), sigma_r / sigma_0 mean {:.3} \
+         ({:.3} to {:.3}), recall {recall:.4}, max force error {error:.2e}, \
          {} significant pairs",
         peak.peak_eta,
         100.0 * peak.eps_a_at_peak,
+        peak.peak_eta_measured,
+        lateral.mean,
+        lateral.min,
+        lateral.max,
         v.body_pairs.significant_truth_pairs
     );
     assert!(recall >= 0.95, "recall {recall}");

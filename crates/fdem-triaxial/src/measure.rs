@@ -3,11 +3,15 @@
 //! This module owns the conversion of raw specimen state (height, volume, axial force)
 //! into the paper's strains and stresses, one row of `curve.csv` ([`CurvePoint`]), the
 //! writing ([`CurveWriter`]) and reading ([`read_curve`]) of that file, the summary of a
-//! curve ([`summarize`]) and the running peak detector ([`PeakTracker`]).
+//! curve ([`summarize`]) and the running peak detector ([`PeakTracker`]); and the lateral
+//! stress the membrane applies to the specimen, measured from the membrane-particle
+//! contact forces ([`membrane_radial_force`], [`radial_stress`]; docs/TRIAXIAL.md,
+//! "Lateral stress").
 //!
 //! Sign convention of the paper: compression positive, contraction positive. Strains are
 //! logarithmic (true) strains, so they stay additive at large deformation.
 
+use fdem_contact::{Counterpart, NodeContact};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{self, Write};
@@ -36,6 +40,90 @@ pub fn stress_ratio(sigma_l: f64, sigma_0: f64) -> f64 {
     3.0 * (sigma_l - sigma_0) / (sigma_l + 2.0 * sigma_0)
 }
 
+/// Lateral area of the specimen `2 pi R H` with the mean radius `R = sqrt(V / (pi H))` of
+/// the enclosed volume, i.e. `2 sqrt(pi V H)` (m^2): the lateral surface of the cylinder
+/// whose cross-section is eq 14's `A = V / H`.
+pub fn lateral_area(volume: f64, height: f64) -> f64 {
+    2.0 * (std::f64::consts::PI * volume * height).sqrt()
+}
+
+/// The force each membrane-particle node contact applies to the membrane, with the point
+/// where it acts: a membrane node pressed into a particle face receives the contact's force
+/// at the node; a particle node pressed into a membrane face gives the face the opposite
+/// of the node's force at the contact point. Each contact is counted once; contacts with
+/// the platens and between particles are left out.
+pub fn membrane_contact_forces(
+    contacts: &[NodeContact],
+    membrane: u32,
+) -> impl Iterator<Item = ([f64; 3], [f64; 3])> + '_ {
+    contacts.iter().filter_map(move |c| {
+        let f = c.force();
+        match c.counterpart {
+            Counterpart::Body(b) if c.body == membrane && b != membrane => Some((c.position, f)),
+            Counterpart::Body(b) if b == membrane && c.body != membrane => {
+                Some((c.contact_point, [-f[0], -f[1], -f[2]]))
+            }
+            _ => None,
+        }
+    })
+}
+
+/// Sum of the radial components (outward from the specimen's axis, the z axis) of forces
+/// acting at points (N); a force on the axis itself has no radial direction and counts 0.
+pub fn radial_force(forces: impl IntoIterator<Item = ([f64; 3], [f64; 3])>) -> f64 {
+    forces
+        .into_iter()
+        .map(|(x, f)| {
+            let r = x[0].hypot(x[1]);
+            if r > 0.0 {
+                (f[0] * x[0] + f[1] * x[1]) / r
+            } else {
+                0.0
+            }
+        })
+        .sum()
+}
+
+/// The radial force the particles push the membrane outward with (N): the sum of the
+/// radial components of [`membrane_contact_forces`]; the membrane pushes the particles
+/// inward with the same force.
+pub fn membrane_radial_force(contacts: &[NodeContact], membrane: u32) -> f64 {
+    radial_force(membrane_contact_forces(contacts, membrane))
+}
+
+/// The lateral stress the membrane applies to the specimen (Pa): `radial_force` over the
+/// [`lateral_area`] of the specimen of `volume` and `height`.
+pub fn radial_stress(radial_force: f64, volume: f64, height: f64) -> f64 {
+    radial_force / lateral_area(volume, height)
+}
+
+/// Mean hoop strain of a membrane's rings of nodes (-): for every ring in `rings`, the
+/// length of the closed polygon through its `around` nodes (the membrane's faces are flat,
+/// so that polygon is the membrane's own length around, draped into the surface voids or
+/// not) over `reference_perimeter`, less 1, averaged over the rings. Ring `k` is nodes
+/// `k * around .. (k + 1) * around` of `nodes`, in order around.
+pub fn hoop_strain(
+    nodes: &[[f64; 3]],
+    around: usize,
+    rings: std::ops::Range<usize>,
+    reference_perimeter: f64,
+) -> f64 {
+    let count = rings.len();
+    let sum: f64 = rings
+        .map(|k| {
+            let ring = &nodes[k * around..(k + 1) * around];
+            let length: f64 = (0..around)
+                .map(|j| {
+                    let (a, b) = (ring[j], ring[(j + 1) % around]);
+                    fdem_core::geometry::norm(fdem_core::geometry::sub(b, a))
+                })
+                .sum();
+            length / reference_perimeter - 1.0
+        })
+        .sum();
+    sum / count as f64
+}
+
 /// The raw state of the specimen at one instant of the shear stage.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Measurement {
@@ -59,6 +147,11 @@ pub struct Measurement {
     pub contacts: u64,
     /// Time step index.
     pub step: u64,
+    /// Radial force of the particles on the membrane, outward positive (N): the sum over
+    /// the membrane-particle node contacts ([`membrane_radial_force`]).
+    pub lateral_force: f64,
+    /// Mean hoop strain of the membrane's free rings ([`hoop_strain`]) (-).
+    pub hoop_strain: f64,
 }
 
 /// The reference state of the shear stage: the end of isotropic consolidation.
@@ -108,6 +201,17 @@ pub struct CurvePoint {
     pub contacts: u64,
     /// Time step index.
     pub step: u64,
+    /// Lateral stress the membrane applies to the specimen, measured from the
+    /// membrane-particle contact forces ([`radial_stress`]) (Pa); NaN when read from a
+    /// file without the column.
+    pub sigma_r: f64,
+    /// Stress ratio of the measured stresses, eq 15 with `sigma_r` in place of sigma_0:
+    /// `3 (sigma_l - sigma_r) / (sigma_l + 2 sigma_r)` (-); NaN when read from a file
+    /// without the column.
+    pub eta_measured: f64,
+    /// Mean hoop strain of the membrane's free rings of nodes, from its stress-free mesh
+    /// ([`hoop_strain`]) (-); NaN when read from a file without the column.
+    pub hoop_strain: f64,
 }
 
 impl CurvePoint {
@@ -115,6 +219,7 @@ impl CurvePoint {
     pub fn from_measurement(m: &Measurement, reference: &Reference) -> CurvePoint {
         let sigma_a = axial_stress(m.axial_force, m.volume, m.height);
         let s0 = reference.sigma_0;
+        let sigma_r = radial_stress(m.lateral_force, m.volume, m.height);
         CurvePoint {
             time: m.time,
             eps_a: axial_strain(reference.h0, m.height),
@@ -132,6 +237,9 @@ impl CurvePoint {
             max_depth: m.max_depth,
             contacts: m.contacts,
             step: m.step,
+            sigma_r,
+            eta_measured: stress_ratio(sigma_a, sigma_r),
+            hoop_strain: m.hoop_strain,
         }
     }
 
@@ -143,26 +251,41 @@ impl CurvePoint {
          self.energy_error, self.max_depth]
     }
 
+    /// The optional real columns, after `step` ([`CURVE_OPTIONAL`] order).
+    fn lateral(&self) -> [f64; 3] {
+        [self.sigma_r, self.eta_measured, self.hoop_strain]
+    }
+
     #[rustfmt::skip]
-    fn from_columns(r: [f64; 14], contacts: u64, step: u64) -> CurvePoint {
+    fn from_columns(r: [f64; 14], contacts: u64, step: u64, lateral: [f64; 3]) -> CurvePoint {
         let [time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q, ke, uf, ee,
              md] = r;
+        let [sigma_r, eta_measured, hoop_strain] = lateral;
         CurvePoint { time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q,
                      kinetic_energy: ke, unbalanced_force: uf, energy_error: ee, max_depth: md,
-                     contacts, step }
+                     contacts, step, sigma_r, eta_measured, hoop_strain }
     }
 
     fn csv_line(&self) -> String {
-        let mut line = String::with_capacity(300);
+        let mut line = String::with_capacity(340);
         for v in self.reals() {
             line.push_str(&format!("{v:e},"));
         }
-        line + &format!("{},{}\n", self.contacts, self.step)
+        line.push_str(&format!("{},{}", self.contacts, self.step));
+        for v in self.lateral() {
+            line.push_str(&format!(",{v:e}"));
+        }
+        line + "\n"
     }
 }
 
-/// Header line of `curve.csv`; the column order of [`CurveWriter`].
-pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,energy_error,max_depth,contacts,step";
+/// Header line of `curve.csv`; the column order of [`CurveWriter`]: the required columns
+/// of [`read_curve`], then the [`CURVE_OPTIONAL`] ones.
+pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,energy_error,max_depth,contacts,step,sigma_r,eta_measured,hoop_strain";
+
+/// The columns [`read_curve`] reads when present and sets to NaN when absent (files
+/// written before the lateral stress was measured).
+pub const CURVE_OPTIONAL: [&str; 3] = ["sigma_r", "eta_measured", "hoop_strain"];
 
 /// Writes `curve.csv` row by row.
 ///
@@ -216,8 +339,8 @@ pub enum CurveError {
 }
 
 /// Reads a `curve.csv` back. Columns are found by header name, so extra columns and any
-/// order are tolerated; a missing required column is an error naming it. Blank lines are
-/// skipped.
+/// order are tolerated; a missing required column is an error naming it, a missing
+/// [`CURVE_OPTIONAL`] column reads as NaN. Blank lines are skipped.
 pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError> {
     let path = path.as_ref();
     let error = |line: usize, message: String| CurveError::Format {
@@ -235,6 +358,7 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
         .map_or(vec![], |(h, _)| h.split(',').map(str::trim).collect());
     let names: Vec<&str> = CURVE_HEADER.split(',').collect();
     let mut index = [0usize; 16];
+    let optional = CURVE_OPTIONAL.map(|name| header.iter().position(|h| *h == name));
     for (slot, name) in index.iter_mut().zip(&names) {
         *slot = header.iter().position(|h| h == name).ok_or_else(|| {
             error(
@@ -267,7 +391,25 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
             let (s, bad) = field(k)?;
             s.parse().map_err(|_| bad("a non-negative integer"))
         };
-        points.push(CurvePoint::from_columns(reals, integer(14)?, integer(15)?));
+        let mut lateral = [f64::NAN; 3];
+        for ((value, position), name) in lateral.iter_mut().zip(optional).zip(CURVE_OPTIONAL) {
+            let Some(k) = position else { continue };
+            let s = fields.get(k).ok_or_else(|| {
+                error(
+                    number,
+                    format!("no column `{name}`: row has {} fields", fields.len()),
+                )
+            })?;
+            *value = s
+                .parse()
+                .map_err(|_| error(number, format!("column `{name}`: `{s}` is not a number")))?;
+        }
+        points.push(CurvePoint::from_columns(
+            reals,
+            integer(14)?,
+            integer(15)?,
+            lateral,
+        ));
     }
     Ok(points)
 }
@@ -298,6 +440,13 @@ pub struct CurveSummary {
     /// spread over at least half the window (the whole curve when none does). Negative
     /// when the sample only contracts; NaN when no two points differ in `eps_a`.
     pub max_dilation_rate: f64,
+    /// Largest stress ratio of the measured stresses, `eta_measured` (first occurrence;
+    /// NaN when the curve has none, e.g. a file written before the column existed).
+    pub peak_eta_measured: f64,
+    /// Axial strain at the peak of `eta_measured`.
+    pub eps_a_at_peak_eta_measured: f64,
+    /// `eta_measured` at the peak of `eta` (the same row as `peak_eta`).
+    pub eta_measured_at_peak: f64,
     /// Axial strain of the last point.
     pub final_eps_a: f64,
     /// Volumetric strain of the last point.
@@ -318,6 +467,14 @@ pub fn summarize(points: &[CurvePoint], residual_window: f64) -> Option<CurveSum
         tracker.observe(p.eta);
     }
     let peak = &points[tracker.index().unwrap_or(0)];
+    let mut measured = PeakTracker::new();
+    for p in points {
+        measured.observe(p.eta_measured);
+    }
+    let (peak_eta_measured, eps_a_at_peak_eta_measured) =
+        measured.index().map_or((f64::NAN, f64::NAN), |i| {
+            (points[i].eta_measured, points[i].eps_a)
+        });
     let start = last.eps_a - residual_window.max(0.0);
     let (sum, count) = points
         .iter()
@@ -340,9 +497,59 @@ pub fn summarize(points: &[CurvePoint], residual_window: f64) -> Option<CurveSum
         max_contraction: contraction.0,
         eps_a_at_max_contraction: contraction.1,
         max_dilation_rate: max_dilation_rate(points, DILATION_WINDOW),
+        peak_eta_measured,
+        eps_a_at_peak_eta_measured,
+        eta_measured_at_peak: peak.eta_measured,
         final_eps_a: last.eps_a,
         final_eps_v: last.eps_v,
         points: points.len(),
+    })
+}
+
+/// The lateral stress the membrane applied during the shear, over sigma_0
+/// (`summary.json`'s `lateral_stress`; docs/TRIAXIAL.md, "Lateral stress").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LateralSummary {
+    /// `sigma_r / sigma_0` at the first row of the shear.
+    pub start: f64,
+    /// Mean of `sigma_r / sigma_0` over the rows of the shear.
+    pub mean: f64,
+    /// Smallest `sigma_r / sigma_0` of a row.
+    pub min: f64,
+    /// Largest `sigma_r / sigma_0` of a row.
+    pub max: f64,
+    /// `sigma_r / sigma_0` at the peak of eq 15's `eta`.
+    pub at_peak: f64,
+    /// `sigma_r / sigma_0` at the last row.
+    pub end: f64,
+    /// Rows with a finite `sigma_r`.
+    pub points: usize,
+}
+
+/// Summarizes `sigma_r / sigma_0` over a shear curve; `None` when no row has a finite
+/// `sigma_r`.
+pub fn summarize_lateral(points: &[CurvePoint], sigma_0: f64) -> Option<LateralSummary> {
+    let ratios: Vec<f64> = points
+        .iter()
+        .map(|p| p.sigma_r / sigma_0)
+        .filter(|r| r.is_finite())
+        .collect();
+    let (first, last) = (*ratios.first()?, *ratios.last()?);
+    let mut tracker = PeakTracker::new();
+    for p in points {
+        tracker.observe(p.eta);
+    }
+    let at_peak = tracker
+        .index()
+        .map_or(f64::NAN, |i| points[i].sigma_r / sigma_0);
+    Some(LateralSummary {
+        start: first,
+        mean: ratios.iter().sum::<f64>() / ratios.len() as f64,
+        min: ratios.iter().copied().fold(f64::INFINITY, f64::min),
+        max: ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        at_peak,
+        end: last,
+        points: ratios.len(),
     })
 }
 
@@ -604,13 +811,15 @@ mod tests {
             std::array::from_fn(|i| *reals.iter().chain(&more).nth(i).unwrap()),
             u64::MAX,
             k,
+            [-2.5e-310 * x, f64::INFINITY, 1.0 / x],
         )
     }
 
     fn bits(p: &CurvePoint) -> Vec<u64> {
         p.reals()
-            .map(f64::to_bits)
             .into_iter()
+            .chain(p.lateral())
+            .map(f64::to_bits)
             .chain([p.contacts, p.step])
             .collect()
     }
@@ -629,7 +838,7 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.starts_with(&format!("{CURVE_HEADER}\n")) && text.ends_with('\n'));
         assert_eq!(text.lines().count(), 4);
-        assert!(text.lines().all(|l| l.split(',').count() == 16));
+        assert!(text.lines().all(|l| l.split(',').count() == 19));
         let read = read_curve(&path).unwrap();
         assert_eq!(read.len(), 3);
         for (k, p) in read.iter().enumerate() {
@@ -665,5 +874,234 @@ mod tests {
         );
         let missing = read_curve(dir.path().join("absent.csv")).unwrap_err();
         assert!(matches!(missing, CurveError::Io { .. }));
+    }
+
+    /// A file written before the lateral stress was measured (16 columns) still reads,
+    /// with NaN in the new columns; a bad value in a present optional column is an error
+    /// naming it.
+    #[test]
+    fn reader_reads_files_without_the_lateral_columns() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("curve.csv");
+        let old_header = CURVE_HEADER.replace(",sigma_r,eta_measured,hoop_strain", "");
+        assert_eq!(old_header.split(',').count(), 16);
+        let point = awkward_point(2);
+        let line = point.csv_line();
+        let old_row = line.rsplitn(4, ',').nth(3).unwrap();
+        std::fs::write(&path, format!("{old_header}\n{old_row}\n")).unwrap();
+        let read = read_curve(&path).unwrap();
+        assert_eq!(read.len(), 1);
+        assert!(read[0].lateral().iter().all(|v| v.is_nan()));
+        assert_eq!(bits(&read[0])[..14], bits(&point)[..14]);
+        assert_eq!(
+            (read[0].contacts, read[0].step),
+            (point.contacts, point.step)
+        );
+        // Old files summarize as before; the measured peak is NaN.
+        let s = summarize(&read, 0.02).unwrap();
+        assert!(s.peak_eta_measured.is_nan() && s.eta_measured_at_peak.is_nan());
+        assert!(summarize_lateral(&read, 1e5).is_none());
+
+        let bad = line.replacen(",inf,", ",x,", 1);
+        std::fs::write(&path, format!("{CURVE_HEADER}\n{bad}")).unwrap();
+        let message = read_curve(&path).unwrap_err().to_string();
+        assert!(message.contains("`eta_measured`"), "{message}");
+    }
+
+    /// A node contact as the contact model reports it: `body`'s node at `position` pressed
+    /// into `counterpart`, the force on the node `force`, acting on the face at `point`.
+    fn contact(
+        body: u32,
+        counterpart: Counterpart,
+        position: [f64; 3],
+        point: [f64; 3],
+        force: [f64; 3],
+    ) -> NodeContact {
+        // Split the force into a normal and a tangential part, as the contact law does.
+        let normal = force.map(|f| 0.75 * f);
+        let tangential = force.map(|f| 0.25 * f);
+        serde_json::from_value(serde_json::json!({
+            "node": 0, "body": body, "counterpart": counterpart, "face": Some(0),
+            "weights": [1.0, 0.0, 0.0], "position": position, "contact_point": point,
+            "depth": 1e-4, "normal_force": normal, "tangential_force": tangential,
+            "tangential_displacement": [0.0, 0.0, 0.0], "sliding": false,
+        }))
+        .unwrap()
+    }
+
+    /// A ring of membrane contacts at known angles with a known outward push: both
+    /// directions (membrane nodes on particle faces, particle nodes on membrane faces)
+    /// count once with the force on the membrane; platen and particle-particle contacts
+    /// do not count; the stress is the force over `2 sqrt(pi V H)`.
+    #[test]
+    fn radial_stress_of_a_ring_of_membrane_contacts() {
+        let (membrane, r, h) = (7u32, 0.075, 0.2);
+        let n = 24;
+        // Outward push F on the membrane at each of n angles, with a hoop and an axial
+        // component that must not count.
+        let (push, hoop, axial) = (1500.0, 300.0, -80.0);
+        let mut contacts = Vec::new();
+        for k in 0..n {
+            let a = 2.0 * PI * (k as f64 + 0.3) / n as f64;
+            let (c, s) = (a.cos(), a.sin());
+            let on_membrane = [push * c - hoop * s, push * s + hoop * c, axial];
+            let z = h * (k as f64 + 0.5) / n as f64;
+            let at = |radius: f64| [radius * c, radius * s, z];
+            if k % 2 == 0 {
+                // The membrane's node in a particle's face: the force on the node is the
+                // force on the membrane.
+                contacts.push(contact(
+                    membrane,
+                    Counterpart::Body(k % 5),
+                    at(r),
+                    at(r - 1e-4),
+                    on_membrane,
+                ));
+            } else {
+                // A particle's node in a membrane face: the node feels the opposite.
+                let f = on_membrane.map(|f| -f);
+                contacts.push(contact(
+                    k % 5,
+                    Counterpart::Body(membrane),
+                    at(r - 1e-4),
+                    at(r),
+                    f,
+                ));
+            }
+        }
+        // Not lateral: a particle on a platen, the membrane on a platen, two particles.
+        let x = [0.05, 0.0, 0.0];
+        contacts.push(contact(3, Counterpart::Wall(1), x, x, [900.0, 0.0, -1e4]));
+        contacts.push(contact(
+            membrane,
+            Counterpart::Wall(0),
+            x,
+            x,
+            [900.0, 0.0, 1e4],
+        ));
+        contacts.push(contact(2, Counterpart::Body(4), x, x, [5e3, 0.0, 0.0]));
+
+        let total = membrane_radial_force(&contacts, membrane);
+        assert!(close(total, n as f64 * push, 1e-9), "{total}");
+        assert_eq!(
+            membrane_contact_forces(&contacts, membrane).count(),
+            n as usize
+        );
+        let volume = PI * r * r * h;
+        let area = lateral_area(volume, h);
+        assert!(close(area, 2.0 * PI * r * h, 1e-15), "{area}");
+        let sigma = radial_stress(total, volume, h);
+        let want = n as f64 * push / (2.0 * PI * r * h);
+        assert!(close(sigma, want, 1e-9 * want), "{sigma} vs {want}");
+        // A membrane pulled inward by the particles gives a negative stress.
+        let pulled: Vec<NodeContact> = contacts
+            .iter()
+            .map(|c| {
+                let mut c = *c;
+                c.normal_force = c.normal_force.map(|f| -f);
+                c.tangential_force = c.tangential_force.map(|f| -f);
+                c
+            })
+            .collect();
+        assert!(close(
+            membrane_radial_force(&pulled, membrane),
+            -total,
+            1e-9
+        ));
+    }
+
+    /// A membrane ring of 40 nodes on the circle of radius r_n, then stretched to 1.05 r_n
+    /// with every other node pushed 2 mm inward (draped): the hoop strain is the polygon's
+    /// length over the reference, averaged over the rings asked for.
+    #[test]
+    fn hoop_strain_of_rings() {
+        let (n, rn) = (40usize, 0.075);
+        let ring = |k: usize, scale: f64, dent: f64| -> Vec<[f64; 3]> {
+            (0..n)
+                .map(|j| {
+                    let a = 2.0 * PI * j as f64 / n as f64;
+                    let r = scale * rn - if j % 2 == 1 { dent } else { 0.0 };
+                    [r * a.cos(), r * a.sin(), 0.01 * k as f64]
+                })
+                .collect()
+        };
+        let reference = 2.0 * n as f64 * rn * (PI / n as f64).sin();
+        let mut nodes = ring(0, 1.0, 0.0);
+        nodes.extend(ring(1, 1.05, 0.0));
+        nodes.extend(ring(2, 1.05, 0.002));
+        assert!(hoop_strain(&nodes, n, 0..1, reference).abs() < 1e-14);
+        assert!(close(hoop_strain(&nodes, n, 1..2, reference), 0.05, 1e-14));
+        // The dented ring: n zigzag sides between radii 1.05 r_n and 1.05 r_n - 2 mm.
+        let (a, d) = (2.0 * PI / n as f64, 0.002);
+        let (r1, r2) = (1.05 * rn, 1.05 * rn - d);
+        let side = (r1 * r1 + r2 * r2 - 2.0 * r1 * r2 * a.cos()).sqrt();
+        let want = n as f64 * side / reference - 1.0;
+        assert!(close(hoop_strain(&nodes, n, 2..3, reference), want, 1e-14));
+        let mean = hoop_strain(&nodes, n, 1..3, reference);
+        assert!(close(mean, 0.5 * (0.05 + want), 1e-14), "{mean}");
+    }
+
+    /// The row carries sigma_r from the measured lateral force and eq 15 with it; the
+    /// summaries find the measured peak and the ratio statistics.
+    #[test]
+    fn measured_lateral_stress_in_rows_and_summaries() {
+        let r = Reference {
+            h0: 0.2,
+            v0: 0.002,
+            sigma_0: 1e5,
+        };
+        let (height, volume) = (0.2, 0.002);
+        let area = lateral_area(volume, height);
+        let m = Measurement {
+            height,
+            volume,
+            axial_force: 4e5 * volume / height,
+            lateral_force: 1.25e5 * area,
+            ..Measurement::default()
+        };
+        let p = CurvePoint::from_measurement(&m, &r);
+        assert!(close(p.sigma_r, 1.25e5, 1e-6), "{}", p.sigma_r);
+        // eta = 1.5 with sigma_0; with sigma_r: 3 * 2.75 / 6.5.
+        assert!(close(p.eta, 1.5, 1e-12));
+        assert!(
+            close(p.eta_measured, 3.0 * 2.75 / 6.5, 1e-12),
+            "{}",
+            p.eta_measured
+        );
+
+        let mut points = synthetic(0.0);
+        let n = points.len();
+        for (k, p) in points.iter_mut().enumerate() {
+            // sigma_r / sigma_0 rises linearly from 0.9 to 1.1; eta_measured peaks later.
+            p.sigma_r = 1e5 * (0.9 + 0.2 * k as f64 / (n - 1) as f64);
+            p.eta_measured = p.eta + 2.0 * p.eps_a;
+        }
+        let s = summarize(&points, 0.02).unwrap();
+        let peak = points
+            .iter()
+            .map(|p| p.eta_measured)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!(s.peak_eta_measured, peak);
+        assert!(s.eps_a_at_peak_eta_measured > s.eps_a_at_peak, "{s:?}");
+        let at_peak = points
+            .iter()
+            .position(|p| p.eps_a == s.eps_a_at_peak)
+            .unwrap();
+        assert_eq!(s.eta_measured_at_peak, points[at_peak].eta_measured);
+        let l = summarize_lateral(&points, 1e5).unwrap();
+        assert_eq!(l.points, n);
+        assert!(
+            close(l.start, 0.9, 1e-12) && close(l.end, 1.1, 1e-12),
+            "{l:?}"
+        );
+        assert!(
+            close(l.min, 0.9, 1e-12) && close(l.max, 1.1, 1e-12),
+            "{l:?}"
+        );
+        assert!(close(l.mean, 1.0, 1e-12), "{l:?}");
+        assert!(
+            close(l.at_peak, points[at_peak].sigma_r / 1e5, 1e-15),
+            "{l:?}"
+        );
     }
 }

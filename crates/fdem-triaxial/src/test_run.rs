@@ -7,7 +7,8 @@
 use crate::jumps::{JumpTally, JumpTotal};
 use crate::loading::{TEST_WALL_MEMBRANE, TestModel};
 use crate::measure::{
-    CurvePoint, CurveSummary, CurveWriter, Measurement, PeakTracker, Reference, summarize,
+    CurvePoint, CurveSummary, CurveWriter, LateralSummary, Measurement, PeakTracker, Reference,
+    hoop_strain, membrane_radial_force, summarize, summarize_lateral,
 };
 use crate::plot::{CurvePlot, CurveSeries, plot_curves};
 use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
@@ -170,6 +171,9 @@ pub struct ConsolidationResult {
     pub volume_rate_limit: f64,
     /// Largest overshoot of the axial stress above sigma_0, over sigma_0.
     pub max_overshoot: f64,
+    /// Lateral stress the membrane applies (measured from its contacts with the
+    /// particles) over sigma_0 at the end.
+    pub lateral_stress_ratio: f64,
     /// Relative energy-balance error at the end of consolidation (the balance is rebased
     /// at the start of each phase).
     pub energy_balance_error: f64,
@@ -201,6 +205,8 @@ pub struct TestSummary {
     pub plan: TestPlan,
     /// Membrane divisions (around, along) and triangles.
     pub membrane_divisions: [usize; 2],
+    /// The membrane's stress-free radius (m): the equal-area radius of its reference mesh.
+    pub membrane_radius: f64,
     /// Confining pressure sigma_0 (Pa).
     pub confining_pressure: f64,
     /// Target axial strain.
@@ -211,6 +217,8 @@ pub struct TestSummary {
     pub shear: PhaseCost,
     /// Peak, residual, contraction and dilation of the curve (None before any row).
     pub curve: Option<CurveSummary>,
+    /// The measured lateral stress `sigma_r / sigma_0` over the shear (None before any row).
+    pub lateral_stress: Option<LateralSummary>,
     /// Axial strain of the contact snapshot at the peak.
     pub peak_snapshot_eps_a: Option<f64>,
     /// Escape checks made (one per output row) and the most particles found outside.
@@ -371,7 +379,23 @@ impl Run<'_> {
             max_depth: sim.contact().map_or(0.0, |c| c.last_report().max_depth),
             contacts: sim.contact().map_or(0, |c| c.model().node_contacts().len()) as u64,
             step: sim.step(),
+            lateral_force: sim.contact().map_or(0.0, |c| {
+                membrane_radial_force(c.model().node_contacts(), self.model.membrane_body())
+            }),
+            hoop_strain: self.hoop_strain(),
         }
+    }
+
+    /// Mean hoop strain of the membrane's free rings (all but the two held by the
+    /// platens) from its stress-free mesh.
+    fn hoop_strain(&self) -> f64 {
+        let (membrane, spec) = (self.model.membrane(), &self.model.membrane_spec);
+        let first = membrane.first_node();
+        let nodes = &self.model.sim.state().positions[first..first + membrane.n_nodes()];
+        let around = spec.divisions_around;
+        let reference =
+            2.0 * around as f64 * spec.node_radius() * (std::f64::consts::PI / around as f64).sin();
+        hoop_strain(nodes, around, 1..spec.divisions_along, reference)
     }
 
     /// Axial stress over sigma_0 from the platen force and the current V/H.
@@ -529,6 +553,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
             estimated_shear_seconds: f64::NAN,
         },
         membrane_divisions: [membrane.divisions_around, membrane.divisions_along],
+        membrane_radius: membrane.radius,
         confining_pressure: sigma_0,
         target_strain: test.target_strain,
         consolidation: ConsolidationResult {
@@ -540,6 +565,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
         },
         shear: PhaseCost::default(),
         curve: None,
+        lateral_stress: None,
         peak_snapshot_eps_a: None,
         escape_checks: 0,
         particles_outside: 0,
@@ -845,6 +871,7 @@ fn check_equilibrium(
     let stored = e.strain + e.other_potential;
     let result = &mut summary.consolidation;
     result.stress_ratio = point.sigma_a / run.sigma_0;
+    result.lateral_stress_ratio = point.sigma_r / run.sigma_0;
     result.unbalanced_force = m.unbalanced_force;
     result.kinetic_ratio = if stored > 0.0 {
         e.kinetic / stored
@@ -1031,6 +1058,7 @@ fn finish(
 ) -> Result<(), TriaxialError> {
     let dir = &run.options.out_dir;
     summary.curve = summarize(points, run.prepared.spec.test.residual_window);
+    summary.lateral_stress = summarize_lateral(points, run.sigma_0);
     if let Some((nodes, pairs)) = peak {
         write_atomically(&dir.join("contacts_peak.csv"), nodes).map_err(out)?;
         write_atomically(&dir.join("pairs_peak.csv"), pairs).map_err(out)?;
