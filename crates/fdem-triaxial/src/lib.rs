@@ -93,6 +93,6 @@ pub use test_run::{
     TestStatus, TestSummary, run_test,
 };
 pub use test_spec::{
-    MAX_TARGET_STRAIN, MEMBRANE_SPACING, MIN_DIVISIONS_AROUND, MembraneSection, TestSection,
-    quick_spec,
+    MAX_TARGET_STRAIN, MEMBRANE_SPACING, MIN_DIVISIONS_AROUND, MembraneSection, TEST_DT_SAFETY,
+    TestSection, quick_spec,
 };

@@ -63,7 +63,7 @@ impl TestPhase {
 }
 
 /// What the test will cost, announced before the long work starts.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct TestPlan {
     /// Particles, particle nodes and elements.
     pub particles: usize,
@@ -508,6 +508,31 @@ impl Run<'_> {
     }
 }
 
+/// Refuses a plan of more steps than a run may take ([`fdem_solver::MAX_STEPS`], as for
+/// scenes), before the first step: a step far below the stable bound (a tiny
+/// `test.dt_safety`) would otherwise plan up to 2^64 steps.
+fn check_plan(plan: &TestPlan) -> Result<(), TriaxialError> {
+    let steps = plan
+        .consolidation_steps_max
+        .saturating_add(plan.shear_steps);
+    if steps <= fdem_solver::MAX_STEPS {
+        return Ok(());
+    }
+    Err(TriaxialError::Test {
+        phase: "plan",
+        message: format!(
+            "the test would take {steps} steps of {:e} s (more than the {} a run may plan); \
+             the step is test.dt_safety times the stable bound {:e} s set by {}: raise \
+             test.dt_safety (default {})",
+            plan.dt,
+            fdem_solver::MAX_STEPS,
+            plan.dt_bound,
+            plan.dt_bound_source,
+            crate::TEST_DT_SAFETY
+        ),
+    })
+}
+
 /// The summary before the first step: the plan (steps, step, bound, contact lengths) and
 /// the test's settings; the results are filled in as the test runs.
 fn initial_summary(run: &Run<'_>) -> TestSummary {
@@ -658,6 +683,7 @@ pub fn run_test(
         jumps,
     };
     let mut summary = initial_summary(&run);
+    check_plan(&summary.plan)?;
     let mut points: Vec<CurvePoint> = Vec::new();
     let mut peak: Option<(String, String)> = None;
     let result = stages(
@@ -1097,4 +1123,28 @@ fn finish(
         message: format!("summary.json: {e}"),
     })?;
     write_atomically(&dir.join("summary.json"), &(text + "\n")).map_err(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plans_beyond_the_step_limit_are_refused_naming_the_safety_factor() {
+        let plan = |consolidation: u64, shear: u64| TestPlan {
+            consolidation_steps_max: consolidation,
+            shear_steps: shear,
+            dt: 1e-300,
+            dt_bound: 1e-5,
+            dt_bound_source: "contact".into(),
+            ..TestPlan::default()
+        };
+        assert!(check_plan(&plan(1000, 2000)).is_ok());
+        assert!(check_plan(&plan(0, fdem_solver::MAX_STEPS)).is_ok());
+        let e = check_plan(&plan(1, fdem_solver::MAX_STEPS))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test.dt_safety") && e.contains("plan"), "{e}");
+        assert!(check_plan(&plan(u64::MAX, u64::MAX)).is_err());
+    }
 }
