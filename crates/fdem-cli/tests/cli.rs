@@ -422,21 +422,7 @@ fn signals_stop_a_run_with_complete_outputs() {
         std::thread::sleep(std::time::Duration::from_millis(300));
         let status = signal_and_wait(&mut child, signals, 20);
         assert_eq!(status.code(), Some(1), "{name}");
-        let summary: Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
-        assert_eq!(summary["status"], "interrupted", "{name}");
-        let energy = std::fs::read_to_string(out.join("energy.csv")).unwrap();
-        assert!(
-            energy.ends_with('\n') && energy.lines().count() >= 2,
-            "{name}"
-        );
-        let parts: Vec<_> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().into_string().unwrap())
-            .filter(|n| n.ends_with(".part"))
-            .collect();
-        assert!(parts.is_empty(), "{name}: {parts:?}");
+        assert_interrupted_outputs(&out, "energy.csv", 2, name);
     }
 }
 
@@ -581,24 +567,33 @@ fn signals_stop_a_triaxial_test_with_complete_outputs() {
         std::thread::sleep(std::time::Duration::from_millis(1500));
         let status = signal_and_wait(&mut child, signals, 30);
         assert_eq!(status.code(), Some(1), "{name}");
-        let summary: Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
-        assert_eq!(summary["status"], "interrupted", "{name}");
-        let rows = std::fs::read_to_string(out.join("consolidation.csv")).unwrap();
-        assert!(rows.ends_with('\n') && rows.lines().count() >= 1, "{name}");
-        let columns = rows.lines().next().unwrap().split(',').count();
-        assert!(
-            rows.lines().all(|l| l.split(',').count() == columns),
-            "{name}: {rows}"
-        );
-        let parts: Vec<_> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().into_string().unwrap())
-            .filter(|n| n.ends_with(".part"))
-            .collect();
-        assert!(parts.is_empty(), "{name}: {parts:?}");
+        assert_interrupted_outputs(&out, "consolidation.csv", 1, name);
     }
+}
+
+/// The outputs an interrupted run leaves in `out`: a summary saying `interrupted`, the
+/// CSV file `csv` with at least `min_lines` lines, all whole (as many columns as the
+/// header, a final newline), and no `.part` file.
+fn assert_interrupted_outputs(out: &std::path::Path, csv: &str, min_lines: usize, name: &str) {
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["status"], "interrupted", "{name}");
+    let rows = std::fs::read_to_string(out.join(csv)).unwrap();
+    assert!(
+        rows.ends_with('\n') && rows.lines().count() >= min_lines,
+        "{name}: {rows}"
+    );
+    let columns = rows.lines().next().unwrap().split(',').count();
+    assert!(
+        rows.lines().all(|l| l.split(',').count() == columns),
+        "{name}: {rows}"
+    );
+    let parts: Vec<_> = std::fs::read_dir(out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".part"))
+        .collect();
+    assert!(parts.is_empty(), "{name}: {parts:?}");
 }
 
 /// A negative number given to a numeric flag is a value out of range, refused in one

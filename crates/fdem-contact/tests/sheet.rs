@@ -3,7 +3,11 @@
 //! it is continuous over ridges, valleys and vertices, so a node sliding over a folded
 //! sheet conserves energy.
 
+mod common;
+
+use common::rng;
 use fdem_contact::{ContactModel, ContactParams, ContactSurface, Counterpart};
+use rand::RngExt;
 
 /// Height of the sheet: a ridge along y (peak at x = 0), a valley along x (bottom at
 /// y = 0), a saddle vertex at the origin. Linear on each quadrant, so a grid with lines at
@@ -132,13 +136,8 @@ fn probe(x: [f64; 3]) -> Option<(f64, [f64; 3])> {
 fn a_node_behind_a_folded_sheet_is_at_the_distance_to_its_closest_point() {
     let (surface, nodes) = sheet_surface(1e-6, height);
     // Deterministic points around the ridge, the valley and the saddle vertex.
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut r = rng(17);
+    let mut next = move || r.random_range(-1.0..1.0);
     let (mut behind, mut in_front) = (0, 0);
     for _ in 0..400 {
         let (x, y) = (0.006 * next(), 0.006 * next());
@@ -272,8 +271,16 @@ fn a_new_contact_deeper_than_a_step_can_reach_is_a_fold_artefact() {
     let r = at(3e-3);
     assert_eq!((r.contacts, r.discarded_sheet_hits), (0, 1), "a deep start");
     let r = at(1e-3);
-    assert_eq!((r.contacts, r.discarded_sheet_hits), (1, 0), "a shallow start");
+    assert_eq!(
+        (r.contacts, r.discarded_sheet_hits),
+        (1, 0),
+        "a shallow start"
+    );
     let r = at(3e-3);
-    assert_eq!((r.contacts, r.discarded_sheet_hits), (1, 0), "deeper from the surface");
+    assert_eq!(
+        (r.contacts, r.discarded_sheet_hits),
+        (1, 0),
+        "deeper from the surface"
+    );
     assert!(r.max_depth > 2e-3);
 }
