@@ -489,6 +489,24 @@ impl MembraneForces {
         omega / (4.0 * std::f64::consts::PI) > 0.5
     }
 
+    /// A radius inside which every point strictly between the planes `z = bottom` and
+    /// `z = top` is inside the closed surface (m; `None` when the membrane comes that
+    /// close to the axis or does not enclose it): the least distance of the membrane from
+    /// the axis, over its triangles the distance from the origin to the triangle's
+    /// projection on the plane z = 0 (to its nearest edge; 0 when it covers the origin).
+    /// The caps lie in the two planes. A point inside that radius and strictly between the
+    /// planes is joined to the axis by a segment that crosses nothing, so its winding
+    /// number is the axis's, computed once here.
+    pub fn clear_radius(&self, positions: &[[f64; 3]], bottom: f64, top: f64) -> Option<f64> {
+        let r = self
+            .triangles
+            .iter()
+            .map(|t| distance_from_axis(t.map(|i| self.node(positions, i))))
+            .fold(f64::INFINITY, f64::min);
+        let axis = [0.0, 0.0, 0.5 * (bottom + top)];
+        (r.is_finite() && r > 0.0 && self.contains(positions, bottom, top, axis)).then_some(r)
+    }
+
     /// Largest distance of a membrane node from the z axis (m).
     pub fn max_radius(&self, positions: &[[f64; 3]]) -> f64 {
         (0..self.n_nodes)
@@ -572,6 +590,32 @@ impl ForceContribution for MembraneForces {
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64 {
         self.strain_energy(nodes.positions)
     }
+}
+
+/// The least distance from the z axis of the points of a triangle: the distance from the
+/// origin to its projection on the plane z = 0, zero when the projection covers the
+/// origin, else the distance to its nearest edge.
+fn distance_from_axis(tri: [V3; 3]) -> f64 {
+    let p = tri.map(|x| [x[0], x[1]]);
+    let cross = |a: [f64; 2], b: [f64; 2]| a[0] * b[1] - a[1] * b[0];
+    let side = |k: usize| cross(p[k], p[(k + 1) % 3]);
+    let (s0, s1, s2) = (side(0), side(1), side(2));
+    if (s0 >= 0.0 && s1 >= 0.0 && s2 >= 0.0) || (s0 <= 0.0 && s1 <= 0.0 && s2 <= 0.0) {
+        return 0.0;
+    }
+    (0..3)
+        .map(|k| {
+            let (a, b) = (p[k], p[(k + 1) % 3]);
+            let e = [b[0] - a[0], b[1] - a[1]];
+            let len2 = e[0] * e[0] + e[1] * e[1];
+            let t = if len2 > 0.0 {
+                (-(a[0] * e[0] + a[1] * e[1]) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (a[0] + t * e[0]).hypot(a[1] + t * e[1])
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 #[cfg(test)]
@@ -740,6 +784,35 @@ mod tests {
         assert!(inside([0.0, 0.0, 0.25]) && inside([0.045, 0.0, 0.11]));
         assert!(!inside([0.06, 0.0, 0.25]) && !inside([0.0, -0.07, 0.25]));
         assert!(!inside([0.0, 0.0, 0.41]) && !inside([0.0, 0.0, 0.09]));
+        // The clear radius of the jittered membrane: no membrane point nearer the axis
+        // (checked on the triangles' edges and centroids), and every point inside it
+        // between the planes is inside, as the axis is.
+        let clear = mf
+            .clear_radius(&p, b, t)
+            .expect("the membrane wraps the axis");
+        assert!(clear > 0.5 * s.radius && clear < s.radius, "{clear}");
+        for tri in &m.triangles {
+            let [x, y, z] = tri.map(|i| p[i]);
+            for w in [
+                [1.0, 0.0, 0.0],
+                [0.5, 0.5, 0.0],
+                [0.0, 0.5, 0.5],
+                [1.0 / 3.0; 3],
+            ] {
+                let q = [0, 1, 2].map(|k| w[0] * x[k] + w[1] * y[k] + w[2] * z[k]);
+                assert!(q[0].hypot(q[1]) >= clear);
+            }
+        }
+        for k in 0..200 {
+            let (angle, frac) = (0.1 * k as f64, (k % 10) as f64 / 10.0);
+            let r = clear * frac;
+            let x = [
+                r * angle.cos(),
+                r * angle.sin(),
+                b + 0.3 * (k as f64 + 0.5) / 200.0,
+            ];
+            assert!(mf.contains(&p, b, t, x), "{x:?}");
+        }
     }
 
     #[test]
