@@ -329,13 +329,18 @@ fn divisions_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<usize>, D::Er
 
 impl crate::SpecimenSpec {
     /// The definition with the settings that only the test uses (`[test]`, `[membrane]`,
-    /// `loading_velocity`) reset to their defaults: two definitions with equal keys are
+    /// `loading_velocity`) reset to their defaults, and the defaults that depend on the
+    /// model made explicit (`preparation.max_overlap`): two definitions with equal keys are
     /// prepared identically, so a prepared specimen can be reused for either.
     pub fn preparation_key(&self) -> crate::SpecimenSpec {
         crate::SpecimenSpec {
             test: TestSection::default(),
             membrane: MembraneSection::default(),
             loading_velocity: None,
+            preparation: crate::PreparationSection {
+                max_overlap: Some(self.max_overlap()),
+                ..self.preparation.clone()
+            },
             ..self.clone()
         }
     }

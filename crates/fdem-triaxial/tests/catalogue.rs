@@ -263,6 +263,15 @@ fn the_quick_specimen_is_valid_and_test_settings_do_not_change_the_preparation()
     assert_eq!(quick.preparation_key(), other.preparation_key());
     other.seed += 1;
     assert_ne!(quick.preparation_key(), other.preparation_key());
+    // A default given explicitly is the same preparation (files written before a default
+    // became model-dependent name it).
+    let mut implicit = quick.clone();
+    implicit.preparation.max_overlap = None;
+    let mut explicit = quick.clone();
+    explicit.preparation.max_overlap = Some(fdem_triaxial::MAX_OVERLAP_DEFORMABLE);
+    assert_eq!(implicit.preparation_key(), explicit.preparation_key());
+    explicit.preparation.max_overlap = Some(fdem_triaxial::MAX_OVERLAP_RIGID);
+    assert_ne!(implicit.preparation_key(), explicit.preparation_key());
 }
 
 fn refused(text: &str) -> (String, String) {
