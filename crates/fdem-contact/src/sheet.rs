@@ -177,24 +177,41 @@ pub(crate) fn closest_contact(group: &FaceGroup<'_>, had_contact: bool) -> Optio
 /// Relative tolerance of a tie between the closest points of two faces of a sheet.
 pub(crate) const TIE: f64 = 1e-3;
 
-/// The distance from the node to the closest point of the group's faces, searching only
-/// faces whose plane is nearer than the best distance so far.
+/// The distance from the node to the closest point of the group's faces, or `None` when
+/// the node is certainly in front of the sheet or farther behind it than the depth limit.
+///
+/// A node behind the sheet has its closest point on a face whose plane it is behind (see
+/// [`closest_contact`]), so the closest distance over those faces, `d_b`, is the depth of
+/// any contact. The faces the node is in front of matter only if one is nearer than
+/// `d_b`: by more than a tie, the node is in front of the sheet there; within a tie, the
+/// tie decides. Faces whose plane is farther than the best distance so far are skipped.
 fn closest_distance(group: &FaceGroup<'_>) -> Option<f64> {
     let (x, positions, reach) = (group.x, group.positions, group.reach);
-    let mut radius = reach.depth_limit + reach.slack;
-    let mut best: Option<f64> = None;
-    for (c, &s) in group.cands.iter().zip(group.signed) {
-        if s.abs() > radius {
-            continue;
-        }
+    let distance = |c: &Candidate| {
         let face = c.nodes.map(|j| positions[j as usize]);
-        let d2 = norm2(sub(x, point_at(closest_point_weights(x, face), face)));
-        if d2.is_finite() && best.is_none_or(|b| d2 < b * b) {
-            best = Some(d2.sqrt());
-            radius = radius.min(d2.sqrt() + reach.slack);
+        norm2(sub(x, point_at(closest_point_weights(x, face), face))).sqrt()
+    };
+    let mut behind: Option<f64> = None;
+    for (c, &s) in group.cands.iter().zip(group.signed) {
+        if s < 0.0 && reach.within(s) && behind.is_none_or(|b| -s <= b + reach.slack) {
+            let d = distance(c);
+            if d.is_finite() && behind.is_none_or(|b| d < b) {
+                behind = Some(d);
+            }
         }
     }
-    best
+    let behind = behind.filter(|&b| b <= reach.depth_limit)?;
+    let mut closest = behind;
+    for (c, &s) in group.cands.iter().zip(group.signed) {
+        if s >= 0.0 && s <= behind + reach.slack {
+            let d = distance(c);
+            if d * (1.0 + TIE) + reach.slack < behind {
+                return None;
+            }
+            closest = closest.min(d);
+        }
+    }
+    Some(closest)
 }
 
 /// The contact of the node with the closest point of one face: depth `|x - q|`, the node
