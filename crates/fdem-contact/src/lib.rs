@@ -129,9 +129,7 @@ pub use model::{
     ContactModel, ContactReport, Counterpart, MARGIN_EDGE_FRACTION, NodeContact, PairSum,
     StableStep, TUNNELLING_FRACTION,
 };
-pub use narrow::{
-    BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance, project_to_edge,
-};
+pub use narrow::{BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance};
 pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};
 pub use surface::ContactSurface;
 pub use wall::{Wall, WallShape};

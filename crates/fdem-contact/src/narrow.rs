@@ -139,37 +139,6 @@ pub fn point_at(weights: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
     [0, 1, 2].map(|k| weights[0] * a[k] + weights[1] * b[k] + weights[2] * c[k])
 }
 
-/// Node behind a face's plane whose foot falls outside the triangle: the closest point of
-/// the triangle (on an edge or a vertex) stands in for the foot. Returns the hit with the
-/// depth = distance to that closest point (at most `depth_limit`), the face's unit normal
-/// and the closest point's barycentric weights; `None` for a node in front of the plane,
-/// farther than the limit, or a degenerate face.
-///
-/// Node-to-face contact alone has holes at convex ridges: a vertex pressing on a ridge
-/// projects outside both faces and passes through. (Sheets use the closest point of the
-/// whole sheet instead, `sheet::closest_contact`, which also covers ridges.)
-pub fn project_to_edge(node: [f64; 3], face: [[f64; 3]; 3], depth_limit: f64) -> Option<FaceHit> {
-    let [a, b, c] = face;
-    let n = cross(sub(b, a), sub(c, a));
-    let nn = norm2(n);
-    if nn <= 0.0 || nn.is_nan() {
-        return None;
-    }
-    if dot(sub(node, a), n) >= 0.0 {
-        return None;
-    }
-    let weights = closest_point_weights(node, face);
-    let depth = norm2(sub(node, point_at(weights, face))).sqrt();
-    if depth.is_nan() || depth > depth_limit {
-        return None;
-    }
-    Some(FaceHit {
-        depth,
-        normal: scale(n, 1.0 / nn.sqrt()),
-        weights,
-    })
-}
-
 /// Squared distance from `p` to the closest point of the triangle `[a, b, c]` (Ericson,
 /// Real-Time Collision Detection, section 5.1.5: the Voronoi region of a vertex, an edge
 /// or the face). A degenerate triangle gives 0 (the exact tests reject it later).
