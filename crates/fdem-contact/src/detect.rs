@@ -53,7 +53,7 @@ pub(crate) struct FaceContact {
     pub(crate) triangle: usize,
     pub(crate) nodes: [usize; 3],
     pub(crate) hit: FaceHit,
-    /// Whether the hit is a sheet's edge test (the closest point on an edge or vertex).
+    /// Whether the hit is a sheet's closest point on an edge or a vertex of the face.
     pub(crate) edge: bool,
 }
 
@@ -272,7 +272,7 @@ impl Ctx<'_> {
             return Ok(Err(Reason::ClosestFace));
         }
         // A sheet hit deeper than the fold depth is a fold artefact (the sheet moves
-        // slowly and has the edge test): discard it, count it.
+        // slowly and the closest point follows it): discard it, count it.
         if self.sheets.is_fold_artefact(group.body, best.hit.depth) {
             sums.discarded += 1;
             return Ok(Err(Reason::FoldDiscard));

@@ -75,8 +75,9 @@
 //! - `broad`: the spatial hash and the Verlet skin (candidate faces per surface node).
 //! - `detect`: the narrow-phase pass, the contacts of each surface node against its
 //!   candidates and the walls, evaluated with the law in fixed chunks.
-//! - `sheet`: what a sheet body is, and the rules contact with it needs (edge test, closest
-//!   face, fold depth) with their invariants.
+//! - `sheet`: what a sheet body is, and the rules contact with it needs (closest point with
+//!   its pseudo-normal, fold depth; the solids' closest-face rule) with their invariants.
+//! - [`events`]: the optional log of contacts whose stored energy jumps in an evaluation.
 //! - [`narrow`]: the node-face projections; `law`, `wall`, `surface`, `params`, `error`:
 //!   the items re-exported below.
 
