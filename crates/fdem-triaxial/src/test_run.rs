@@ -361,6 +361,9 @@ impl Run<'_> {
             return Ok(());
         };
         let jumps = contact.model_mut().take_energy_jumps();
+        if jumps.is_empty() {
+            return Ok(());
+        }
         let path = self.options.out_dir.join("energy_jumps.csv");
         tally.add(phase, time, &jumps).map_err(io(&path))
     }
