@@ -13,6 +13,8 @@
 //!   when complete.
 //! - **The contact snapshot format** ([`snapshot`]): the node-level and pair-level CSV
 //!   files (docs/MICRO.md): headers, rows, their writer and the header-driven reader.
+//! - **Numbers in messages** ([`number`]): [`number::Number`] prints a value plain where
+//!   that is short and in exponent form otherwise.
 //! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
 //!   for the SVG figures.
 //!
@@ -48,5 +50,6 @@
 
 pub mod fs;
 pub mod geometry;
+pub mod number;
 pub mod plot;
 pub mod snapshot;

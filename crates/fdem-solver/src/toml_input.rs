@@ -74,21 +74,9 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str, origin: &str) -> Result<T, In
     })
 }
 
-/// A number as messages print it: plain where that is short (1e-3 <= |v| < 1e7, and
-/// zero), in exponent form otherwise, so that `1e-300` is not written as 300 digits.
-#[derive(Clone, Copy, Debug)]
-pub struct Number(pub f64);
-
-impl std::fmt::Display for Number {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let a = self.0.abs();
-        if self.0 == 0.0 || !self.0.is_finite() || (1e-3..1e7).contains(&a) {
-            write!(f, "{}", self.0)
-        } else {
-            write!(f, "{:e}", self.0)
-        }
-    }
-}
+/// A number as messages print it (plain where short, in exponent form otherwise): the
+/// shared rule of `fdem_core::number`, re-exported here for the schemas' messages.
+pub use fdem_core::number::Number;
 
 // ---- Range checks: one rule each, used while deserializing (the error then carries the
 // value's line) and by code that validates sections built in code (`check_*`). ----
