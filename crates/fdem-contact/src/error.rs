@@ -1,6 +1,7 @@
 //! The crate's error type.
 
 use crate::Counterpart;
+use fdem_core::number::Number;
 
 /// Everything that can go wrong while setting up or evaluating contact.
 ///
@@ -11,9 +12,10 @@ use crate::Counterpart;
 pub enum ContactError {
     /// A contact parameter is out of its range.
     #[error(
-        "contact parameter `{field}` = {value} is invalid: it must be {requirement}; \
+        "contact parameter `{field}` = {} is invalid: it must be {requirement}; \
          fix it in the contact parameters (paper Table 3 gives normal_penalty 1.8e11 N/m^3, \
-         penalty_ratio 1, friction 0.3, damping 0.2, damping_ratio 1)"
+         penalty_ratio 1, friction 0.3, damping 0.2, damping_ratio 1)",
+        Number(*.value)
     )]
     InvalidParameter {
         /// Name of the field of [`crate::ContactParams`].
@@ -65,9 +67,10 @@ pub enum ContactError {
 
     /// A control area is not finite and positive.
     #[error(
-        "control area {area} m^2 of surface node {node} (body {body}) is not finite and > 0; \
+        "control area {} m^2 of surface node {node} (body {body}) is not finite and > 0; \
          control areas are one third of the areas of the triangles around a node \
-         (fdem_mesh::Surface::from_triangles computes them)"
+         (fdem_mesh::Surface::from_triangles computes them)",
+        Number(*.area)
     )]
     InvalidControlArea {
         /// Global node id.
@@ -80,8 +83,9 @@ pub enum ContactError {
 
     /// A node mass is not finite and positive.
     #[error(
-        "lumped mass {mass} kg of surface node {node} (body {body}) is not finite and > 0; \
-         pass the lumped masses of the assembled bodies (every surface node needs a mass)"
+        "lumped mass {} kg of surface node {node} (body {body}) is not finite and > 0; \
+         pass the lumped masses of the assembled bodies (every surface node needs a mass)",
+        Number(*.mass)
     )]
     InvalidMass {
         /// Global node id.
@@ -93,7 +97,10 @@ pub enum ContactError {
     },
 
     /// A contact length other than the margin (depth limit, sheet fold depth) is invalid.
-    #[error("contact {what} {value} m is not finite and > 0; give a positive length")]
+    #[error(
+        "contact {what} {} m is not finite and > 0; give a positive length",
+        Number(*.value)
+    )]
     InvalidLength {
         /// `"depth limit"` or `"sheet fold depth"`.
         what: &'static str,
@@ -103,8 +110,9 @@ pub enum ContactError {
 
     /// The Verlet-skin margin is not finite and positive.
     #[error(
-        "contact margin {margin} m is not finite and > 0; use for example \
-         ContactModel::suggested_margin (a tenth of the shortest surface edge)"
+        "contact margin {} m is not finite and > 0; use for example \
+         ContactModel::suggested_margin (a tenth of the shortest surface edge)",
+        Number(*.margin)
     )]
     InvalidMargin {
         /// The margin that was given.
@@ -121,7 +129,10 @@ pub enum ContactError {
     },
 
     /// The time step or the time passed to an evaluation is invalid.
-    #[error("{quantity} = {value} is invalid for a contact evaluation: {requirement}")]
+    #[error(
+        "{quantity} = {} is invalid for a contact evaluation: {requirement}",
+        Number(*.value)
+    )]
     InvalidStep {
         /// `"dt"` or `"time"`.
         quantity: &'static str,

@@ -115,7 +115,8 @@ impl Wall {
                 }
                 if !(radius.is_finite() && radius > 0.0) {
                     return Err(bad(format!(
-                        "cylinder radius {radius} is not finite and > 0; give the inner radius in metres"
+                        "cylinder radius {} is not finite and > 0; give the inner radius in metres",
+                        fdem_core::number::Number(radius)
                     )));
                 }
                 WallShape::Cylinder {

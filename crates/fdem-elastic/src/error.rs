@@ -12,7 +12,10 @@ use thiserror::Error;
 #[non_exhaustive]
 pub enum ElasticError {
     /// A material parameter is out of its admissible range.
-    #[error("invalid material: {field} = {value} {requirement}")]
+    #[error(
+        "invalid material: {field} = {} {requirement}",
+        fdem_core::number::Number(*.value)
+    )]
     InvalidMaterial {
         /// Name of the offending field (`density`, `youngs_modulus`, `poisson_ratio`).
         field: &'static str,

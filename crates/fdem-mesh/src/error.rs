@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use crate::ElementOrder;
+use fdem_core::number::Number;
 
 /// Everything that can go wrong while building, placing or writing a mesh.
 ///
@@ -30,7 +31,8 @@ pub enum MeshError {
 
     /// The sphere diameter is zero, negative, infinite or NaN.
     #[error(
-        "particle diameter {diameter} is invalid; give a finite diameter greater than 0 (in metres)"
+        "particle diameter {} is invalid; give a finite diameter greater than 0 (in metres)",
+        Number(*.diameter)
     )]
     InvalidDiameter {
         /// The diameter that was given.
@@ -48,7 +50,10 @@ pub enum MeshError {
     },
 
     /// A placement scale is zero, negative, infinite or NaN.
-    #[error("placement scale {scale} is invalid; give a finite scale greater than 0")]
+    #[error(
+        "placement scale {} is invalid; give a finite scale greater than 0",
+        Number(*.scale)
+    )]
     InvalidScale {
         /// The scale that was given.
         scale: f64,
@@ -56,8 +61,9 @@ pub enum MeshError {
 
     /// A placement rotation is not a finite unit quaternion.
     #[error(
-        "placement rotation [w, x, y, z] = {rotation:?} is not a unit quaternion (norm {norm}); \
-         give four finite numbers whose norm is 1 within 1e-6 (normalise it first)"
+        "placement rotation [w, x, y, z] = {rotation:?} is not a unit quaternion (norm {}); \
+         give four finite numbers whose norm is 1 within 1e-6 (normalise it first)",
+        Number(*.norm)
     )]
     InvalidRotation {
         /// The quaternion that was given, `[w, x, y, z]`.

@@ -48,7 +48,10 @@ pub enum MicroError {
     },
 
     /// A clustering or analysis parameter is out of its range.
-    #[error("parameter `{name}` = {value} is invalid: it must be {requirement}")]
+    #[error(
+        "parameter `{name}` = {} is invalid: it must be {requirement}",
+        fdem_core::number::Number(*.value)
+    )]
     InvalidParameter {
         /// The parameter's name (as in [`crate::ClusterParams`] or the CLI flag).
         name: &'static str,

@@ -41,7 +41,10 @@ pub use law::{HExponents, Rational, ScaleLaw};
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ScalingError {
     /// A scale factor that is not a finite positive number.
-    #[error("scale factor {name} = {value} is invalid: it must be a finite number greater than 0")]
+    #[error(
+        "scale factor {name} = {} is invalid: it must be a finite number greater than 0",
+        fdem_core::number::Number(*.value)
+    )]
     InvalidFactor {
         /// Which factor (`h`, `length`, `time`, `mass`).
         name: String,

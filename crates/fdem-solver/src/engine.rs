@@ -548,7 +548,10 @@ impl Simulation {
                 self.time,
                 format!(
                     "energy balance error {:.3e} J is {:.3e} of the energy scale {:.3e} J (tolerance {})",
-                    e.balance_error, relative, scale, self.guard.energy_tolerance
+                    e.balance_error,
+                    relative,
+                    scale,
+                    fdem_core::number::Number(self.guard.energy_tolerance)
                 ),
             ));
         }

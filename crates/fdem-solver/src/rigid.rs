@@ -191,7 +191,10 @@ impl RigidState {
         }
         let norm = self.orientation.iter().map(|q| q * q).sum::<f64>().sqrt();
         if (norm - 1.0).abs() > 1e-9 {
-            return Err(format!("orientation quaternion of norm {norm}, not 1"));
+            return Err(format!(
+                "orientation quaternion of norm {}, not 1",
+                fdem_core::number::Number(norm)
+            ));
         }
         Ok(())
     }

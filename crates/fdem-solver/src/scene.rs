@@ -543,7 +543,8 @@ fn safety_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> 
     let v = f64::deserialize(d)?;
     check_fraction(v).map(Some).map_err(|_| {
         D::Error::custom(format!(
-            "must be a fraction of the stable bound in (0, 1], got {v}"
+            "must be a fraction of the stable bound in (0, 1], got {}",
+            Number(v)
         ))
     })
 }
@@ -910,6 +911,17 @@ mod tests {
     const SCENE: &str = "[simulation]\nduration = 1.0\n\
         [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n\
         [[particle]]\ndiameter = 0.015\ncenter = [0.0, 0.0, 0.0]\n[contact]\n";
+
+    /// A refused `dt_safety` is printed in exponent form, not as 300 digits.
+    #[test]
+    fn a_refused_safety_factor_is_printed_in_exponent_form() {
+        let text = SCENE.replace("duration = 1.0\n", "duration = 1.0\ndt_safety = 1e300\n");
+        let e = Scene::from_toml_str(&text, "t").unwrap_err().to_string();
+        assert!(
+            e.contains("simulation.dt_safety") && e.ends_with("got 1e300"),
+            "{e}"
+        );
+    }
 
     /// An empty `[contact]` table is the law's default, and each of the law's parameters
     /// is refused by the TOML (at its line) exactly when the law refuses it.

@@ -178,7 +178,8 @@ pub fn check_unit_quaternion(q: [f64; 4]) -> Result<[f64; 4], String> {
         Ok(q.map(|x| x / norm))
     } else {
         Err(format!(
-            "must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got {q:?} with norm {norm}"
+            "must be a unit quaternion [w, x, y, z] (norm 1 within 1e-6), got {q:?} with norm {}",
+            Number(norm)
         ))
     }
 }

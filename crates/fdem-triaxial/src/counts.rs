@@ -3,6 +3,7 @@
 
 use crate::spec::DEFAULT_SOLID_FRACTION;
 use crate::{SpecimenSpec, TriaxialError};
+use fdem_core::number::Number;
 use fdem_mesh::{SphereSpec, sphere_mesh};
 use fdem_solver::{
     DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, ParticleModel,
@@ -197,9 +198,9 @@ pub(crate) fn class_counts(spec: &SpecimenSpec) -> Result<Vec<u64>, (String, Str
                 format!("gradation[{i}].mass_fraction"),
                 format!(
                     "{} of the solids gives no particle of {} m (x h = {} m); raise the fraction or the specimen size, or drop the class",
-                    c.mass_fraction,
-                    c.size,
-                    c.size * h
+                    Number(c.mass_fraction),
+                    Number(c.size),
+                    Number(c.size * h)
                 ),
             ));
         }

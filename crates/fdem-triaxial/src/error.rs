@@ -1,5 +1,6 @@
 //! The crate's error type.
 
+use fdem_core::number::Number;
 use std::path::PathBuf;
 
 /// Everything that can refuse a specimen definition, stop a preparation or refuse a
@@ -33,9 +34,11 @@ pub enum TriaxialError {
     },
     /// Random placement could not fit the particles, even in the tallest column tried.
     #[error(
-        "could not place particle {particle} of {total} (diameter {diameter} m) without overlap \
-         in a column {height:.4} m tall after {sweeps} relaxation sweeps; lower \
-         preparation.loose_solid_fraction"
+        "could not place particle {particle} of {total} (diameter {} m) without overlap \
+         in a column {:.4} m tall after {sweeps} relaxation sweeps; lower \
+         preparation.loose_solid_fraction",
+        Number(*.diameter),
+        Number(*.height)
     )]
     Placement {
         /// Index of the particle that did not fit (large ones are placed first).
@@ -60,10 +63,13 @@ pub enum TriaxialError {
     /// The solver stopped the compaction: usually the assembly jammed before the target
     /// height (overlaps grew past the contact's depth limit) or particles hit too fast.
     #[error(
-        "compaction stopped at a platen gap of {gap:.5} m (target {target} m, nominal solid \
-         fraction {solid_fraction:.4} there): {cause}; if the assembly jammed before the \
+        "compaction stopped at a platen gap of {:.5} m (target {} m, nominal solid \
+         fraction {:.4} there): {cause}; if the assembly jammed before the \
          target, lower solid_fraction or preparation.friction (or raise contact.margin to \
-         accept deeper overlaps); if particles hit too fast, lower preparation.platen_speed"
+         accept deeper overlaps); if particles hit too fast, lower preparation.platen_speed",
+        Number(*.gap),
+        Number(*.target),
+        Number(*.solid_fraction)
     )]
     Compaction {
         /// Distance between the platens when it stopped (m).

@@ -27,6 +27,7 @@
 //! the confined membrane is pressed onto the particles.
 
 use fdem_core::geometry::{add, cross, dot, norm, scale, sub};
+use fdem_core::number::Number;
 use fdem_solver::{ForceContribution, NodeView, Powers, SolverError, StepBound};
 
 type V3 = [f64; 3];
@@ -36,7 +37,7 @@ type V3 = [f64; 3];
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MembraneError {
     /// A field of [`MembraneSpec`] out of its range (radius, divisions, thickness, material).
-    #[error("membrane {name} = {value} is invalid; it must be {rule}")]
+    #[error("membrane {name} = {} is invalid; it must be {rule}", Number(*.value))]
     Parameter {
         /// The field name.
         name: &'static str,
@@ -46,7 +47,11 @@ pub enum MembraneError {
         rule: &'static str,
     },
     /// The top ring is not above the bottom ring.
-    #[error("membrane top {top} m must be above its bottom {bottom} m; swap or correct them")]
+    #[error(
+        "membrane top {} m must be above its bottom {} m; swap or correct them",
+        Number(*.top),
+        Number(*.bottom)
+    )]
     Height {
         /// z of the bottom ring (m).
         bottom: f64,

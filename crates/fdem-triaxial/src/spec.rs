@@ -4,6 +4,7 @@
 
 use crate::TriaxialError;
 use crate::test_spec::{MembraneSection, TestSection};
+use fdem_core::number::Number;
 use fdem_mesh::{ElementOrder, Sizing};
 use fdem_scaling::ScaleLaw;
 use fdem_solver::toml_input::{
@@ -697,7 +698,8 @@ impl SpecimenSpec {
                 "preparation.loose_solid_fraction".into(),
                 format!(
                     "must lie in (0, {MAX_LOOSE_SOLID_FRACTION}] (the random placement's \
-                     relaxation jams near 0.5-0.55), got {loose}"
+                     relaxation jams near 0.5-0.55), got {}",
+                    Number(loose)
                 ),
             ));
         }
@@ -711,7 +713,8 @@ impl SpecimenSpec {
                 "membrane_thickness".into(),
                 format!(
                     "{} m leaves no room inside a specimen of diameter {} m; it must be less than the radius",
-                    self.membrane_thickness, self.diameter
+                    Number(self.membrane_thickness),
+                    Number(self.diameter)
                 ),
             ));
         }
@@ -742,11 +745,13 @@ impl SpecimenSpec {
                 return Err((
                     size_key,
                     format!(
-                        "particles of {} m (x coarse_graining {h} = {d} m) are larger than the specimen \
+                        "particles of {} m (x coarse_graining {} = {} m) are larger than the specimen \
                          (inner diameter {} m, height {} m); use smaller sizes or a smaller coarse_graining",
-                        class.size,
-                        2.0 * r,
-                        self.height
+                        Number(class.size),
+                        Number(h),
+                        Number(d),
+                        Number(2.0 * r),
+                        Number(self.height)
                     ),
                 ));
             }
@@ -755,7 +760,7 @@ impl SpecimenSpec {
                     size_key,
                     format!(
                         "size {} m is listed twice; merge the two classes",
-                        class.size
+                        Number(class.size)
                     ),
                 ));
             }
@@ -787,8 +792,9 @@ impl SpecimenSpec {
                 return Err((
                     "solid_fraction".into(),
                     format!(
-                        "{f} exceeds the densest packing of spheres (pi / sqrt(18) = \
-                         {DENSEST_PACKING}); no arrangement reaches it"
+                        "{} exceeds the densest packing of spheres (pi / sqrt(18) = \
+                         {DENSEST_PACKING}); no arrangement reaches it",
+                        Number(f)
                     ),
                 ));
             }
@@ -799,13 +805,16 @@ impl SpecimenSpec {
         let too_loose = |target: String| {
             Err((
                 "preparation.loose_solid_fraction".into(),
-                format!("{loose} must be below {target}, or there is nothing to compact"),
+                format!(
+                    "{} must be below {target}, or there is nothing to compact",
+                    Number(loose)
+                ),
             ))
         };
         if let Some(f) = self.requested_solid_fraction()
             && f <= loose
         {
-            return too_loose(format!("the target solid fraction {f}"));
+            return too_loose(format!("the target solid fraction {}", Number(f)));
         }
         let h = self.coarse_graining;
         let counts = crate::counts::class_counts(self)?;
@@ -820,14 +829,18 @@ impl SpecimenSpec {
             return Err((
                 "height".into(),
                 format!(
-                    "{} m is below the {needed:.6} m the solids need at the densest packing \
+                    "{} m is below the {:.6} m the solids need at the densest packing \
                      ({DENSEST_PACKING}); raise the height or lower the particle count",
-                    self.height
+                    Number(self.height),
+                    Number(needed)
                 ),
             ));
         }
         if implied <= loose {
-            return too_loose(format!("the specimen's solid fraction {implied:.4}"));
+            return too_loose(format!(
+                "the specimen's solid fraction {:.4}",
+                Number(implied)
+            ));
         }
         Ok(())
     }
@@ -904,6 +917,37 @@ mod tests {
             e.as_ref().map_or_else(|m| !m.contains("exceeds"), |_| true),
             "{e:?}"
         );
+    }
+
+    /// The checks across keys print extreme values in exponent form, not as hundreds of
+    /// digits (or as `0.0000`).
+    #[test]
+    fn checks_across_keys_print_extreme_values_in_exponent_form() {
+        type Spoil = fn(&mut SpecimenSpec);
+        let cases: [(Spoil, &str); 5] = [
+            (|s| s.gradation[0].size = 1e300, "particles of 1e300 m"),
+            (|s| s.membrane_thickness = 1e300, "1e300 m leaves no room"),
+            (|s| s.height = 1e-300, "height 1e-300 m"),
+            (
+                |s| s.test.target_strain = 1e-300,
+                "test.target_strain = 1e-300",
+            ),
+            (
+                |s| {
+                    s.solid_fraction = None;
+                    s.particles = Some(1);
+                    s.height = 1e200;
+                },
+                "solid fraction 1.",
+            ),
+        ];
+        for (spoil, fragment) in cases {
+            let mut spec = crate::quick_spec();
+            spoil(&mut spec);
+            let e = spec.validate("code").unwrap_err().to_string();
+            assert!(e.contains(fragment), "{fragment}: {e}");
+            assert!(!e.contains("0000000000"), "{e}");
+        }
     }
 
     /// Sizes and contact lengths follow h; with exact scaling the parameters follow

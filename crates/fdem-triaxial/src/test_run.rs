@@ -12,6 +12,7 @@ use crate::measure::{
 };
 use crate::plot::{CurvePlot, CurveSeries, plot_curves};
 use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
+use fdem_core::number::Number;
 use fdem_mesh::vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};
 use fdem_solver::output::{BoundaryBody, VtkSeries, contact_snapshot_text, write_atomically};
 use fdem_solver::{EnergyReport, Simulation};
@@ -941,14 +942,14 @@ fn no_equilibrium(
              ratio {:.3e} (limit {}), volume rate {:.3e} (limit {}); raise \
              test.consolidation_time or relax the limits",
             steps as f64 * dt,
-            result.stress_ratio,
-            test.stress_tolerance,
+            Number(result.stress_ratio),
+            Number(test.stress_tolerance),
             result.unbalanced_force,
-            test.unbalanced_force,
+            Number(test.unbalanced_force),
             result.kinetic_ratio,
-            test.kinetic_ratio,
+            Number(test.kinetic_ratio),
             result.volume_rate,
-            test.volume_rate
+            Number(test.volume_rate)
         ),
     }
 }

@@ -2,6 +2,7 @@
 //! and the loading of the triaxial test (docs/TRIAXIAL.md has the schema and the reasons
 //! for every default).
 
+use fdem_core::number::Number;
 use fdem_solver::toml_input::{
     at_least_one, check_fraction, fraction, fraction_opt, non_negative, non_negative_opt, poisson,
     positive, positive_opt,
@@ -243,7 +244,8 @@ impl TestSection {
                 "test.output_strain",
                 format!(
                     "{} is not below test.target_strain = {}; give a smaller output interval",
-                    self.output_strain, self.target_strain
+                    Number(self.output_strain),
+                    Number(self.target_strain)
                 ),
             ));
         }
@@ -307,7 +309,8 @@ fn check_target_strain(v: f64) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!(
-            "must lie in (0, {MAX_TARGET_STRAIN}] (a logarithmic axial strain), got {v}"
+            "must lie in (0, {MAX_TARGET_STRAIN}] (a logarithmic axial strain), got {}",
+            Number(v)
         ))
     }
 }
