@@ -14,12 +14,16 @@ use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
 use fdem_scaling::ScaleLaw;
 use std::process::ExitCode;
 
-const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --model deformable|rigid|auto, --order linear|quadratic,\n             --level N, --strain S, --vtk, --threads N, --fresh, --out DIR, --config FILE);\n             a preset with --model rigid or auto gets linear surfaces unless --order is given\n  preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
+const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --model deformable|rigid|auto, --order linear|quadratic,\n             --level N, --strain S, --vtk, --threads N, --fresh, --out DIR, --config FILE);\n             a preset with --model rigid or auto gets linear surfaces unless --order is given\n  study      a coarse-graining study (`fdem study`, docs/STUDY.md): --preset quick|equal|binary|paper
+             or --series FILE, --model, --order, --seeds N, --tests A,B, --strain S, --out DIR
+             (default out/study/PRESET), --report DIR (RESULTS.md and results/), --plan, --report-only
+  preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("triaxial") => triaxial(&args[1..]),
+        Some("study") => study(&args[1..]),
         Some("preflight") => preflight(&args[1..]),
         Some("docs") => docs(),
         Some("-h" | "--help") | None => {
@@ -93,6 +97,54 @@ fn workspace_root() -> std::path::PathBuf {
         .unwrap_or_else(|| std::path::PathBuf::from("."))
 }
 
+/// Runs the release `fdem` binary with `args`.
+fn fdem(args: &[String]) -> anyhow::Result<std::process::ExitStatus> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    std::process::Command::new(cargo)
+        .current_dir(workspace_root())
+        .args([
+            "run",
+            "--release",
+            "--locked",
+            "--quiet",
+            "-p",
+            "fdem-cli",
+            "--bin",
+            "fdem",
+            "--",
+        ])
+        .args(args)
+        .status()
+        .context("starting cargo")
+}
+
+/// A study: `fdem study` in release mode, into `out/study/PRESET` unless `--out` is given.
+fn study(rest: &[String]) -> anyhow::Result<()> {
+    let given = |flag: &str| {
+        rest.iter()
+            .any(|a| a == flag || a.starts_with(&format!("{flag}=")))
+    };
+    let mut args: Vec<String> = vec!["study".into()];
+    args.extend(rest.iter().cloned());
+    if !given("--out") {
+        let preset = rest
+            .windows(2)
+            .find(|w| w[0] == "--preset")
+            .map_or("custom", |w| w[1].as_str());
+        args.extend(["--out".to_string(), format!("out/study/{preset}")]);
+    }
+    args.extend(["--invoked-as".to_string(), "cargo xtask study".to_string()]);
+    eprintln!(
+        "building fdem (release) and running: fdem {}",
+        args.join(" ")
+    );
+    let status = fdem(&args)?;
+    if !status.success() {
+        bail!("fdem study failed ({status})");
+    }
+    Ok(())
+}
+
 /// The main job: `fdem triaxial` in release mode with the default scene filled in.
 fn triaxial(rest: &[String]) -> anyhow::Result<()> {
     let given = |flag: &str| rest.iter().any(|a| a == flag);
@@ -117,28 +169,12 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
         let dir = if quick { "out/quick" } else { "out/triaxial" };
         args.extend(["--out".to_string(), dir.to_string()]);
     }
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     eprintln!(
         "building fdem (release) and running: fdem triaxial {}",
         args.join(" ")
     );
-    let status = std::process::Command::new(cargo)
-        .current_dir(workspace_root())
-        .args([
-            "run",
-            "--release",
-            "--locked",
-            "--quiet",
-            "-p",
-            "fdem-cli",
-            "--bin",
-            "fdem",
-            "--",
-        ])
-        .arg("triaxial")
-        .args(&args)
-        .status()
-        .context("starting cargo")?;
+    args.insert(0, "triaxial".to_string());
+    let status = fdem(&args)?;
     if !status.success() {
         bail!("fdem triaxial failed ({status})");
     }

@@ -46,6 +46,10 @@ enum Command {
     // A negative number is a value to check (and refuse with its range), not a flag.
     #[command(allow_negative_numbers = true)]
     Compare(commands::compare::CompareArgs),
+    /// A coarse-graining study: series of triaxial tests over seeds, errors against the original, cost, charts and RESULTS.md (finished runs are reused).
+    // A negative number is a value to check (and refuse with its range), not a flag.
+    #[command(allow_negative_numbers = true)]
+    Study(commands::study::StudyArgs),
     /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
     // A negative number is a value to check (and refuse with its range), not a flag.
     #[command(allow_negative_numbers = true)]
@@ -85,6 +89,7 @@ fn main() -> ExitCode {
             commands::on_pool(args.threads, || commands::triaxial::run(&args))
         }
         Command::Compare(args) => commands::compare::run(&args),
+        Command::Study(args) => commands::on_pool(args.threads, || commands::study::run(&args)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -13,6 +13,7 @@
 //!   when complete.
 //! - **The contact snapshot format** ([`snapshot`]): the node-level and pair-level CSV
 //!   files (docs/MICRO.md): headers, rows, their writer and the header-driven reader.
+//! - **A stable hash** ([`hash`]): FNV-1a, for file checksums and run keys.
 //! - **Numbers in messages** ([`number`]): [`number::Number`] prints a value plain where
 //!   that is short and in exponent form otherwise.
 //! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
@@ -50,6 +51,7 @@
 
 pub mod fs;
 pub mod geometry;
+pub mod hash;
 pub mod number;
 pub mod plot;
 pub mod snapshot;

@@ -117,6 +117,20 @@ impl Style {
     }
 }
 
+/// The shape of a point marker ([`Draw::draw_markers`]), [`MARKER_SIZE`] pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    /// A filled circle.
+    Circle,
+    /// A filled upward triangle.
+    Triangle,
+    /// An open square.
+    Square,
+}
+
+/// Size of the point markers (pixels).
+pub const MARKER_SIZE: i32 = 5;
+
 /// Drawing on a [`Chart`] in the project's style: axes, legend and the kinds of series the
 /// figures use. Implemented for every chart with `f64` axes (linear or logarithmic).
 pub trait Draw {
@@ -153,6 +167,20 @@ pub trait Draw {
         &mut self,
         points: impl IntoIterator<Item = (f64, f64)>,
         colour: RGBColor,
+    ) -> DrawResult;
+
+    /// Points with vertical error bars: a [`Marker`] of `colour` at each `(x, y)` and a
+    /// 1-pixel bar from `y - spread` to `y + spread` (none where the spread is 0 or not
+    /// finite), with a legend entry when `label` is given.
+    ///
+    /// # Errors
+    /// The plotting library's message.
+    fn draw_markers(
+        &mut self,
+        points: &[(f64, f64, f64)],
+        colour: RGBColor,
+        marker: Marker,
+        label: Option<&str>,
     ) -> DrawResult;
 
     /// A thin (1 pixel) reference line from `from` to `to` in `colour`: a threshold, a
@@ -229,6 +257,60 @@ where
         self.draw_series(dots).map(drop).map_err(message)
     }
 
+    fn draw_markers(
+        &mut self,
+        points: &[(f64, f64, f64)],
+        colour: RGBColor,
+        marker: Marker,
+        label: Option<&str>,
+    ) -> DrawResult {
+        let bars = points
+            .iter()
+            .filter(|p| p.2.is_finite() && p.2 > 0.0)
+            .map(|&(x, y, e)| {
+                PathElement::new(vec![(x, y - e), (x, y + e)], colour.stroke_width(1))
+            });
+        self.draw_series(bars).map_err(message)?;
+        let r = MARKER_SIZE;
+        let at = |&(x, y, _): &(f64, f64, f64)| EmptyElement::at((x, y));
+        // One series per shape: a series holds one concrete element type.
+        let drawn = match marker {
+            Marker::Circle => self.draw_series(
+                points
+                    .iter()
+                    .map(|p| at(p) + Circle::new((0, 0), r, colour.filled())),
+            ),
+            Marker::Triangle => self.draw_series(
+                points
+                    .iter()
+                    .map(|p| at(p) + TriangleMarker::new((0, 0), r + 1, colour.filled())),
+            ),
+            Marker::Square => self.draw_series(
+                points
+                    .iter()
+                    .map(|p| at(p) + Rectangle::new([(-r, -r), (r, r)], colour.stroke_width(2))),
+            ),
+        }
+        .map_err(message)?;
+        if let Some(label) = label {
+            let drawn = drawn.label(label);
+            let r = MARKER_SIZE;
+            let at = |(x, y): (i32, i32)| EmptyElement::at((x + LEGEND_SAMPLE / 2, y));
+            // One closure per shape: the legend takes a concrete element type.
+            match marker {
+                Marker::Circle => {
+                    drawn.legend(move |p| at(p) + Circle::new((0, 0), r, colour.filled()))
+                }
+                Marker::Triangle => drawn
+                    .legend(move |p| at(p) + TriangleMarker::new((0, 0), r + 1, colour.filled())),
+                Marker::Square => drawn.legend(move |p| {
+                    at(p) + Rectangle::new([(-r, -r), (r, r)], colour.stroke_width(2))
+                }),
+            };
+        }
+        Ok(())
+    }
+
     fn draw_reference_line(
         &mut self,
         from: (f64, f64),
@@ -269,6 +351,18 @@ mod tests {
             chart.draw_line([(0.0, 1e-3), (1.0, 0.5)], colour(0), Some("first"))?;
             chart.draw_line([(0.0, 0.1), (1.0, 0.1)], colour(1), None)?;
             chart.draw_dots([(0.5, 0.01)], colour(2))?;
+            for (i, marker) in [Marker::Circle, Marker::Triangle, Marker::Square]
+                .into_iter()
+                .enumerate()
+            {
+                let x = 0.2 * (i + 1) as f64;
+                chart.draw_markers(
+                    &[(x, 0.1, 0.05), (x, 0.5, 0.0)],
+                    colour(i),
+                    marker,
+                    Some("marked"),
+                )?;
+            }
             chart.draw_reference_line((0.2, 1e-3), (0.2, 1.0), RGBColor(170, 0, 0))?;
             chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)
         })

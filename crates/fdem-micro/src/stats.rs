@@ -17,7 +17,7 @@ pub const WEAK_RATIO: f64 = 0.2;
 
 /// Histogram of `F_n / mean(F_n)` over the particle contacts, bins `[k w, (k + 1) w)` with
 /// `w = BIN_WIDTH`.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Histogram {
     /// Bin width ([`BIN_WIDTH`]).
     pub bin_width: f64,

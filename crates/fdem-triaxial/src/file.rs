@@ -29,6 +29,7 @@ use crate::prepare::{PreparationReport, PreparedSpecimen, Snapshot};
 use crate::{SpecimenSpec, TriaxialError};
 use fdem_contact::Counterpart;
 use fdem_core::fs::AtomicFile;
+use fdem_core::hash::Fnv1a;
 use fdem_solver::RigidState;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -61,25 +62,23 @@ struct Header {
     report: PreparationReport,
 }
 
-/// FNV-1a, 64 bits.
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Fnv {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-    fn update(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    }
+/// What a saved specimen file is to a definition ([`PreparedSpecimen::cached`]).
+#[derive(Debug)]
+pub enum Cached {
+    /// A preparation of the definition, ready to test.
+    Reusable(Box<PreparedSpecimen>),
+    /// A preparation of another definition.
+    Other,
+    /// A file that does not load (damaged, another format), with the reason.
+    Unreadable(TriaxialError),
+    /// No file.
+    Missing,
 }
 
 /// A writer that checksums what it writes.
 struct Checked<W: Write> {
     inner: W,
-    hash: Fnv,
+    hash: Fnv1a,
 }
 
 impl<W: Write> Checked<W> {
@@ -118,7 +117,7 @@ impl PreparedSpecimen {
         let file = AtomicFile::create(path).map_err(|e| TriaxialError::io("creating", path, e))?;
         let mut w = Checked {
             inner: file,
-            hash: Fnv::new(),
+            hash: Fnv1a::new(),
         };
         let s = &self.state;
         let result = (|| -> std::io::Result<()> {
@@ -175,6 +174,25 @@ impl PreparedSpecimen {
         result
             .and_then(|()| w.inner.finish())
             .map_err(|e| TriaxialError::io("writing", path, e))
+    }
+
+    /// What the specimen file at `path` is to the definition `spec`: a preparation of it
+    /// (equal [`SpecimenSpec::preparation_key`]s; returned with `spec` as its definition,
+    /// so the test's own settings apply), another specimen's, unreadable, or missing.
+    pub fn cached(path: &Path, spec: &SpecimenSpec) -> Cached {
+        if !path.exists() {
+            return Cached::Missing;
+        }
+        match PreparedSpecimen::load(path) {
+            Ok(s) if s.spec.preparation_key() == spec.preparation_key() => {
+                Cached::Reusable(Box::new(PreparedSpecimen {
+                    spec: spec.clone(),
+                    ..s
+                }))
+            }
+            Ok(_) => Cached::Other,
+            Err(e) => Cached::Unreadable(e),
+        }
     }
 
     /// Reads a specimen file written by [`PreparedSpecimen::save`], refusing a file of
@@ -354,7 +372,7 @@ const CHECKSUM: usize = 8;
 /// Whether the last eight bytes are the checksum of the bytes before them.
 fn checksum_holds(bytes: &[u8]) -> bool {
     let end = bytes.len() - CHECKSUM;
-    let mut hash = Fnv::new();
+    let mut hash = Fnv1a::new();
     hash.update(&bytes[..end]);
     let mut stored = [0u8; CHECKSUM];
     stored.copy_from_slice(&bytes[end..]);

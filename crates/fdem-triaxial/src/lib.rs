@@ -67,7 +67,7 @@ mod test_spec;
 pub use compare::{COMPARISON_HEADER, FinishedRun, RunCost, comparison_row, write_comparison};
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;
-pub use file::{FORMAT_VERSION, MAGIC};
+pub use file::{Cached, FORMAT_VERSION, MAGIC};
 pub use jumps::{JUMPS_HEADER, JumpTotal};
 pub use loading::{
     TEST_DEPTH_LIMIT_MARGINS, TEST_FOLD_DEPTH_MARGINS, TEST_SKIN_FRACTION, TEST_WALL_BOTTOM,

@@ -547,8 +547,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
     let height = spec.height;
     let consolidation_time = test.consolidation_time.unwrap_or(0.1 * height / velocity);
     let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
-    let shear_steps =
-        (height * (1.0 - (-test.target_strain).exp()) / (velocity * dt)).ceil() as u64;
+    let shear_steps = spec.shear_steps(dt);
     let membrane = &model.membrane_spec;
     TestSummary {
         status: "running".into(),

@@ -331,6 +331,14 @@ fn divisions_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<usize>, D::Er
 }
 
 impl crate::SpecimenSpec {
+    /// Steps of the shear with time step `dt`: the platen moves at the loading velocity
+    /// until the logarithmic axial strain reaches `test.target_strain`, a travel of
+    /// `H (1 - exp(-eps))` (eq 12).
+    pub fn shear_steps(&self, dt: f64) -> u64 {
+        let travel = self.height * (1.0 - (-self.test.target_strain).exp());
+        (travel / (self.loading_velocity() * dt)).ceil() as u64
+    }
+
     /// The definition with the settings that only the test uses (`[test]`, `[membrane]`,
     /// `loading_velocity`) reset to their defaults, and the defaults that depend on the
     /// model made explicit (`preparation.max_overlap`): two definitions with equal keys are

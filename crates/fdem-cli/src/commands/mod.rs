@@ -7,6 +7,7 @@ pub mod micro;
 pub mod run;
 pub mod scale;
 pub mod specimen;
+pub mod study;
 pub mod triaxial;
 
 use anyhow::{Context, bail};

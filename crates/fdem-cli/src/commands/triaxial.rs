@@ -5,7 +5,7 @@ use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, phase_b
 use anyhow::{Context, bail};
 use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
-    PreparedSpecimen, Preset, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
+    Cached, PreparedSpecimen, Preset, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
     TestStatus, prepare, quick_spec, run_test, specimen_time_step,
 };
 use indicatif::ProgressBar;
@@ -100,10 +100,28 @@ fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
 }
 
 /// Progress of the test on stderr: the plan, one line per phase, a bar on a terminal.
-struct TestProgress {
+pub(crate) struct TestProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
     interrupt: Arc<AtomicBool>,
+}
+
+impl TestProgress {
+    /// A reporter that draws bars on a terminal and stops when `interrupt` is set.
+    pub(crate) fn new(interrupt: Arc<AtomicBool>) -> Self {
+        TestProgress {
+            bar: None,
+            terminal: std::io::stderr().is_terminal(),
+            interrupt,
+        }
+    }
+
+    /// Clears the bar.
+    pub(crate) fn finish(&mut self) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
+        }
+    }
 }
 
 impl TestObserver for TestProgress {
@@ -160,7 +178,7 @@ impl TestObserver for TestProgress {
     }
 }
 
-fn duration(seconds: f64) -> String {
+pub(crate) fn duration(seconds: f64) -> String {
     if !seconds.is_finite() {
         return "unknown".into();
     }
@@ -200,20 +218,21 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
     }
     let spec = definition(args)?;
     let cache = args.out.join(PREPARED_FILE);
-    if !args.fresh && cache.exists() {
-        match PreparedSpecimen::load(&cache) {
-            Ok(s) if s.spec.preparation_key() == spec.preparation_key() => {
+    if !args.fresh {
+        match PreparedSpecimen::cached(&cache, &spec) {
+            Cached::Reusable(s) => {
                 eprintln!(
                     "reusing the prepared specimen {} (--fresh prepares again)",
                     cache.display()
                 );
-                return Ok(PreparedSpecimen { spec, ..s });
+                return Ok(*s);
             }
-            Ok(_) => eprintln!(
+            Cached::Other => eprintln!(
                 "{} holds another specimen; preparing this one",
                 cache.display()
             ),
-            Err(e) => eprintln!("{e}; preparing again"),
+            Cached::Unreadable(e) => eprintln!("{e}; preparing again"),
+            Cached::Missing => {}
         }
     }
     let counts = spec.counts()?;
@@ -272,11 +291,7 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
     let interrupt = super::interrupt_flag();
     let start = Instant::now();
     let prepared = prepared(args, &interrupt)?;
-    let mut progress = TestProgress {
-        bar: None,
-        terminal: std::io::stderr().is_terminal(),
-        interrupt: Arc::clone(&interrupt),
-    };
+    let mut progress = TestProgress::new(Arc::clone(&interrupt));
     let options = TestOptions {
         out_dir: args.out.clone(),
         vtk: args.vtk,
@@ -284,9 +299,7 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
         energy_jumps: args.energy_jumps,
     };
     let result = run_test(&prepared, &options, &mut progress, &interrupt);
-    if let Some(bar) = progress.bar.take() {
-        bar.finish_and_clear();
-    }
+    progress.finish();
     let summary = result?;
     report(&summary, &args.out, start.elapsed().as_secs_f64());
     if summary.status == "interrupted" {

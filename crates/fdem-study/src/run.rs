@@ -1,0 +1,467 @@
+//! Running a study: the plan with its estimated cost, then each run in turn, prepared or
+//! reused, tested, and recorded in `runs/LABEL/run.json`. A finished run whose record
+//! holds the same key is reused; a prepared specimen of the same preparation is reused
+//! (the preparation is a run's first checkpoint); everything else is computed.
+
+use crate::cost::{peak_memory, reset_peak_memory};
+use crate::metrics::{PeakContacts, peak_contacts};
+use crate::{RunDef, StudyError};
+use fdem_triaxial::{
+    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestSummary, prepare, run_test,
+    specimen_time_step,
+};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Name of a run's record in its directory.
+pub const RECORD_FILE: &str = "run.json";
+/// Name of a run's prepared specimen in its directory.
+pub const SPECIMEN_FILE: &str = "specimen.fdemspec";
+
+/// Steps of a whole run (preparation, consolidation, shear) over the steps of its shear
+/// at the particles' own bound, for the cost estimate before the study has measured its
+/// own ratio (the membrane and the platens can set a smaller step than the particles;
+/// docs/STUDY.md).
+pub const STEPS_OVER_SHEAR: f64 = 6.0;
+
+/// Wall-clock seconds per step and per unit of work (a deformable element, a surface node
+/// of a particle or a membrane node) before the study has measured its own; docs/STUDY.md
+/// says where it comes from. Replaced by the median of the study's finished runs.
+pub const DEFAULT_SECONDS_PER_UNIT_STEP: f64 = 2.0e-7;
+
+/// The directory of a run.
+pub fn run_dir(out: &Path, run: &RunDef) -> PathBuf {
+    out.join("runs").join(run.label())
+}
+
+/// What one phase of a run cost.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct PhaseRecord {
+    /// Steps.
+    pub steps: u64,
+    /// Wall-clock seconds.
+    pub wall_seconds: f64,
+    /// CPU seconds of all threads (NaN where unknown).
+    pub cpu_seconds: f64,
+}
+
+/// The record of one run (`runs/LABEL/run.json`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RunRecord {
+    /// The run's key ([`RunDef::key`]).
+    pub key: String,
+    /// Its label ([`RunDef::label`]).
+    pub label: String,
+    /// Series and test.
+    pub series: String,
+    /// Test name.
+    pub test: String,
+    /// Coarse-graining factor.
+    pub h: f64,
+    /// Exact scaling applied.
+    pub exact_scaling: bool,
+    /// Model asked for (`deformable`, `rigid`, `auto`).
+    pub model: String,
+    /// Model used: `deformable`, `rigid`, or `mixed (R of N rigid)` when `auto` chose
+    /// per size class.
+    pub model_used: String,
+    /// Element order.
+    pub order: String,
+    /// Placement seed.
+    pub seed: u64,
+    /// `completed`, `failed` or `interrupted` (the test's summary status).
+    pub status: String,
+    /// The failure, if any.
+    pub failure: Option<String>,
+    /// Particles.
+    pub particles: u64,
+    /// Deformable elements.
+    pub elements: u64,
+    /// Surface nodes of the particles.
+    pub surface_nodes: u64,
+    /// Nodes of the membrane.
+    pub membrane_nodes: u64,
+    /// Preparation (its cost as recorded when the specimen was prepared, also when the
+    /// specimen file was reused).
+    pub preparation: PhaseRecord,
+    /// Whether the prepared specimen came from an earlier call.
+    pub preparation_reused: bool,
+    /// Consolidation.
+    pub consolidation: PhaseRecord,
+    /// Shear.
+    pub shear: PhaseRecord,
+    /// Peak resident memory of the run (bytes), where the platform reports it.
+    pub peak_memory_bytes: Option<u64>,
+    /// Worker threads.
+    pub threads: usize,
+    /// The plan's step estimate before [`STEPS_OVER_SHEAR`]'s correction by measured
+    /// runs ([`planned_steps`]); 0 in records written before it existed.
+    #[serde(default)]
+    pub planned_steps: u64,
+    /// The contacts at the peak (a completed run's).
+    #[serde(default)]
+    pub peak: Option<PeakContacts>,
+}
+
+impl RunRecord {
+    /// Steps of all phases.
+    pub fn steps(&self) -> u64 {
+        self.preparation.steps + self.consolidation.steps + self.shear.steps
+    }
+
+    /// Wall-clock seconds of all phases.
+    pub fn wall_seconds(&self) -> f64 {
+        self.preparation.wall_seconds + self.consolidation.wall_seconds + self.shear.wall_seconds
+    }
+
+    /// CPU seconds of all phases (NaN where a phase's are unknown).
+    pub fn cpu_seconds(&self) -> f64 {
+        self.preparation.cpu_seconds + self.consolidation.cpu_seconds + self.shear.cpu_seconds
+    }
+
+    /// Work units of one step: deformable elements, particle surface nodes and membrane
+    /// nodes.
+    pub fn units(&self) -> u64 {
+        self.elements + self.surface_nodes + self.membrane_nodes
+    }
+
+    /// Element-steps of all phases.
+    pub fn element_steps(&self) -> u64 {
+        self.elements.saturating_mul(self.steps())
+    }
+
+    /// Surface-node-steps of all phases.
+    pub fn surface_node_steps(&self) -> u64 {
+        self.surface_nodes.saturating_mul(self.steps())
+    }
+
+    /// Whether the run finished.
+    pub fn completed(&self) -> bool {
+        self.status == "completed"
+    }
+}
+
+/// Reads the record of `run` in `out`, when one exists with the run's key.
+pub fn finished_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
+    let path = run_dir(out, run).join(RECORD_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| StudyError::io("reading", &path, e))?;
+    let record: RunRecord = serde_json::from_str(&text).map_err(|e| {
+        StudyError::file(
+            &path,
+            format!("is not a run record: {e}; delete it to run again"),
+        )
+    })?;
+    Ok((record.key == run.key()? && record.completed() && record.peak.is_some()).then_some(record))
+}
+
+/// One run of the plan.
+#[derive(Clone, Debug, Serialize)]
+pub struct PlannedRun {
+    /// Label.
+    pub label: String,
+    /// Particles.
+    pub particles: u64,
+    /// Work units per step ([`RunRecord::units`], the membrane estimated).
+    pub units: u64,
+    /// Estimated steps of the whole run.
+    pub steps: u64,
+    /// Estimated wall-clock seconds (0 for a reused run).
+    pub seconds: f64,
+    /// `finished` (reused), `prepared` (its specimen is reused) or `new`.
+    pub state: &'static str,
+}
+
+/// The plan of a study, printed before the long work.
+#[derive(Clone, Debug, Serialize)]
+pub struct StudyPlan {
+    /// The runs in order.
+    pub runs: Vec<PlannedRun>,
+    /// Estimated wall-clock seconds of everything still to run.
+    pub total_seconds: f64,
+    /// Seconds per unit-step used for the estimate.
+    pub seconds_per_unit_step: f64,
+    /// Steps of a run per planned shear step used for the estimate.
+    pub steps_per_planned: f64,
+    /// Where that figure comes from.
+    pub throughput_source: String,
+}
+
+/// The membrane's node count is set by the test from the specimen's size; the plan
+/// estimates it from the membrane spacing (docs/TRIAXIAL.md) as the lateral area over a
+/// node's share.
+fn membrane_nodes_estimate(run: &RunDef) -> u64 {
+    let spacing = fdem_triaxial::MEMBRANE_SPACING * run.spec.smallest_simulated_size();
+    let area = std::f64::consts::PI * run.spec.diameter * run.spec.height;
+    (area / (spacing * spacing)).ceil() as u64
+}
+
+/// What the finished runs of a study measured for its estimates: seconds per unit-step
+/// (the median of their shears) and steps per planned step (the median of their actual
+/// over their planned steps), each with where it comes from.
+#[derive(Clone, Debug)]
+struct Throughput {
+    seconds_per_unit_step: f64,
+    steps_per_planned: f64,
+    source: String,
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.retain(|x| x.is_finite() && *x > 0.0);
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
+}
+
+fn throughput(records: &[RunRecord]) -> Throughput {
+    let done: Vec<&RunRecord> = records
+        .iter()
+        .filter(|r| r.completed() && r.shear.steps > 0 && r.units() > 0)
+        .collect();
+    let rate = median(
+        done.iter()
+            .map(|r| r.shear.wall_seconds / (r.shear.steps as f64 * r.units() as f64))
+            .collect(),
+    );
+    let steps = median(
+        done.iter()
+            .filter(|r| r.planned_steps > 0)
+            .map(|r| r.steps() as f64 / r.planned_steps as f64)
+            .collect(),
+    );
+    match rate {
+        Some(rate) => Throughput {
+            seconds_per_unit_step: rate,
+            steps_per_planned: steps.unwrap_or(STEPS_OVER_SHEAR),
+            source: format!("the median of {} finished run(s) of this study", done.len()),
+        },
+        None => Throughput {
+            seconds_per_unit_step: DEFAULT_SECONDS_PER_UNIT_STEP,
+            steps_per_planned: STEPS_OVER_SHEAR,
+            source: "the defaults (no finished run in this study yet)".into(),
+        },
+    }
+}
+
+/// The shear steps of `run` at its particles' stable step (before any correction).
+pub fn planned_steps(run: &RunDef) -> Result<u64, StudyError> {
+    let (_, bound, _) = specimen_time_step(&run.spec)?;
+    Ok(run.spec.shear_steps(bound * run.spec.test.dt_safety()))
+}
+
+/// The plan of `runs` in `out`: what is reused, what is computed and what it will cost.
+pub fn plan(runs: &[RunDef], out: &Path) -> Result<StudyPlan, StudyError> {
+    let mut finished = Vec::new();
+    let mut states = Vec::new();
+    for run in runs {
+        let record = finished_record(out, run)?;
+        let state = if record.is_some() {
+            "finished"
+        } else if matches!(
+            PreparedSpecimen::cached(&run_dir(out, run).join(SPECIMEN_FILE), &run.spec),
+            Cached::Reusable(_)
+        ) {
+            "prepared"
+        } else {
+            "new"
+        };
+        states.push(state);
+        finished.extend(record);
+    }
+    let measured = throughput(&finished);
+    let rate = measured.seconds_per_unit_step;
+    let mut planned = Vec::new();
+    for (run, state) in runs.iter().zip(states) {
+        let counts = run.spec.counts()?;
+        let steps = (measured.steps_per_planned * planned_steps(run)? as f64) as u64;
+        let units = counts.elements + counts.surface_nodes + membrane_nodes_estimate(run);
+        let seconds = match state {
+            "finished" => 0.0,
+            // The preparation is about a third of a run's steps (docs/STUDY.md).
+            "prepared" => rate * units as f64 * steps as f64 * 2.0 / 3.0,
+            _ => rate * units as f64 * steps as f64,
+        };
+        planned.push(PlannedRun {
+            label: run.label(),
+            particles: counts.particles,
+            units,
+            steps,
+            seconds,
+            state,
+        });
+    }
+    Ok(StudyPlan {
+        total_seconds: planned.iter().map(|p| p.seconds).sum(),
+        runs: planned,
+        seconds_per_unit_step: rate,
+        steps_per_planned: measured.steps_per_planned,
+        throughput_source: measured.source,
+    })
+}
+
+/// Receives a study's plan and progress, and lends the observers of each run's
+/// preparation and test (progress bars, the interrupt).
+pub trait StudyObserver {
+    /// The plan, once, before the first run.
+    fn plan(&mut self, _plan: &StudyPlan) {}
+    /// Run `index` (from 0) of `total` starts; `estimate` its planned seconds.
+    fn run_started(&mut self, _index: usize, _total: usize, _run: &RunDef, _estimate: f64) {}
+    /// Run `index` ended (or was reused).
+    fn run_ended(&mut self, _index: usize, _total: usize, _record: &RunRecord, _reused: bool) {}
+    /// The observer of a preparation.
+    fn preparation(&mut self) -> &mut dyn Observer;
+    /// The observer of a test.
+    fn test(&mut self) -> &mut dyn TestObserver;
+}
+
+/// An observer that reports nothing.
+#[derive(Debug, Default)]
+pub struct SilentStudy {
+    preparation: fdem_triaxial::Silent,
+    test: fdem_triaxial::SilentTest,
+}
+
+impl StudyObserver for SilentStudy {
+    fn preparation(&mut self) -> &mut dyn Observer {
+        &mut self.preparation
+    }
+    fn test(&mut self) -> &mut dyn TestObserver {
+        &mut self.test
+    }
+}
+
+/// Runs every run of `runs` not yet finished in `out`, cheapest first by the plan's
+/// estimate, and returns the records of all (reused ones included, in that order). A failed run is recorded and the study goes on; an
+/// interrupt stops it after writing what the interrupted test had ([`StudyError::Interrupted`]).
+pub fn run_study(
+    runs: &[RunDef],
+    out: &Path,
+    observer: &mut dyn StudyObserver,
+    interrupt: &AtomicBool,
+) -> Result<Vec<RunRecord>, StudyError> {
+    let plan = plan(runs, out)?;
+    observer.plan(&plan);
+    // Cheapest first: an interrupted study has finished as many runs as it could.
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by(|&a, &b| plan.runs[a].seconds.total_cmp(&plan.runs[b].seconds));
+    let mut records = Vec::new();
+    for (i, (run, planned)) in order.iter().map(|&k| (&runs[k], &plan.runs[k])).enumerate() {
+        if let Some(record) = finished_record(out, run)? {
+            observer.run_ended(i, runs.len(), &record, true);
+            records.push(record);
+            continue;
+        }
+        observer.run_started(i, runs.len(), run, planned.seconds);
+        let record = one_run(run, out, observer, interrupt)?;
+        observer.run_ended(i, runs.len(), &record, false);
+        if record.status == "interrupted" || interrupt.load(Ordering::SeqCst) {
+            return Err(StudyError::Interrupted { run: run.label() });
+        }
+        records.push(record);
+    }
+    Ok(records)
+}
+
+/// Prepares (or reuses the preparation of) one run, tests it and writes its record.
+fn one_run(
+    run: &RunDef,
+    out: &Path,
+    observer: &mut dyn StudyObserver,
+    interrupt: &AtomicBool,
+) -> Result<RunRecord, StudyError> {
+    let dir = run_dir(out, run);
+    std::fs::create_dir_all(&dir).map_err(|e| StudyError::io("creating", &dir, e))?;
+    let record_path = dir.join(RECORD_FILE);
+    if record_path.exists() {
+        // A record of another definition or of an unfinished run: this run replaces it.
+        std::fs::remove_file(&record_path)
+            .map_err(|e| StudyError::io("removing", &record_path, e))?;
+    }
+    reset_peak_memory();
+    let specimen_path = dir.join(SPECIMEN_FILE);
+    let (prepared, reused) = match PreparedSpecimen::cached(&specimen_path, &run.spec) {
+        Cached::Reusable(s) => (*s, true),
+        _ => {
+            let prepared = prepare(&run.spec, observer.preparation())?;
+            prepared.save(&specimen_path)?;
+            if !prepared.report.checks.failures.is_empty() {
+                return Err(StudyError::Definition(format!(
+                    "{}: the prepared specimen failed its checks: {}",
+                    run.label(),
+                    prepared.report.checks.failures.join("; ")
+                )));
+            }
+            (prepared, false)
+        }
+    };
+    let options = TestOptions {
+        out_dir: dir.clone(),
+        vtk: false,
+        dt: None,
+        energy_jumps: None,
+    };
+    let summary = run_test(&prepared, &options, observer.test(), interrupt)?;
+    let record = record_of(run, &dir, &prepared, reused, &summary)?;
+    let text = serde_json::to_string_pretty(&record)
+        .map_err(|e| StudyError::file(&record_path, e.to_string()))?;
+    fdem_core::fs::write_atomically(&record_path, text)
+        .map_err(|e| StudyError::io("writing", &record_path, e))?;
+    Ok(record)
+}
+
+fn record_of(
+    run: &RunDef,
+    dir: &Path,
+    prepared: &PreparedSpecimen,
+    reused: bool,
+    summary: &TestSummary,
+) -> Result<RunRecord, StudyError> {
+    let counts = run.spec.counts()?;
+    let report = &prepared.report;
+    let phase = |c: &fdem_triaxial::PhaseCost| PhaseRecord {
+        steps: c.steps,
+        wall_seconds: c.wall_seconds,
+        cpu_seconds: c.cpu_seconds.unwrap_or(f64::NAN),
+    };
+    let model_used = match (counts.rigid_particles, counts.particles) {
+        (0, _) => "deformable".to_string(),
+        (r, n) if r == n => "rigid".to_string(),
+        (r, n) => format!("mixed ({r} of {n} rigid)"),
+    };
+    Ok(RunRecord {
+        key: run.key()?,
+        label: run.label(),
+        series: run.series.clone(),
+        test: run.test.clone(),
+        h: run.h(),
+        exact_scaling: run.exact_scaling(),
+        model: run.model().name().to_string(),
+        model_used,
+        order: run.order().to_string(),
+        seed: run.seed,
+        status: summary.status.clone(),
+        failure: summary.failure.clone(),
+        particles: counts.particles,
+        elements: counts.elements,
+        surface_nodes: counts.surface_nodes,
+        membrane_nodes: summary.plan.membrane_nodes as u64,
+        preparation: PhaseRecord {
+            steps: report.compact_steps + report.settle_steps,
+            wall_seconds: report.wall_seconds,
+            cpu_seconds: report.cpu_seconds.unwrap_or(f64::NAN),
+        },
+        preparation_reused: reused,
+        consolidation: phase(&summary.consolidation.cost),
+        shear: phase(&summary.shear),
+        peak_memory_bytes: peak_memory(),
+        threads: summary.threads,
+        planned_steps: planned_steps(run)?,
+        peak: if summary.status == "completed" {
+            Some(peak_contacts(dir, counts.particles as usize)?)
+        } else {
+            None
+        },
+    })
+}
