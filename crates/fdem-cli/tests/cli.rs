@@ -244,6 +244,51 @@ fn run_refuses_a_bad_scene_in_one_line_and_writes_nothing() {
     );
 }
 
+/// A scene that cannot fit in the memory available (20000 particles of the finest mesh,
+/// about a terabyte) is refused in one line with the estimate, before any output.
+#[test]
+fn run_refuses_a_scene_that_cannot_fit_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = String::from(
+        "[simulation]\nduration = 1.0e-5\n\
+         [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n",
+    );
+    for i in 0..20_000 {
+        text.push_str(&format!(
+            "[[particle]]\ndiameter = 0.015\ncenter = [{}, 0.0, 0.0]\n\
+             mesh = {{ level = 4, order = \"quadratic\", shells = 8 }}\n",
+            0.02 * f64::from(i)
+        ));
+    }
+    let need = fdem_solver::Scene::from_toml_str(&text, "huge.toml")
+        .unwrap()
+        .model_size()
+        .unwrap()
+        .bytes();
+    match fdem_core::fs::available_memory() {
+        Some(available) if available < need => {}
+        _ => return eprintln!("skipped: the memory available is unknown or above {need} bytes"),
+    }
+    let scene = dir.path().join("huge.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = fdem(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    let estimate = fdem_solver::bytes_text(need);
+    assert!(
+        err.contains(&format!("need about {estimate}")) && err.contains("are available"),
+        "{err}"
+    );
+    assert!(!out_dir.exists());
+}
+
 #[test]
 fn scale_and_coarsen_work_on_every_example_scene() {
     let dir = tempfile::tempdir().unwrap();

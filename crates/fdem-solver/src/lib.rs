@@ -23,6 +23,7 @@ mod engine;
 mod error;
 mod forces;
 mod initial_overlap;
+mod memory;
 mod model;
 pub mod output;
 mod rigid;
@@ -44,13 +45,18 @@ pub use forces::{
     BodyElements, Constraint, ElasticForces, ElementInput, ForceContribution, NodeView, Powers,
     StepBound, VerletWork,
 };
+pub use memory::{
+    BYTES_BASE, BYTES_PER_ELEMENT, BYTES_PER_NODE, BYTES_PER_SURFACE_NODE, ModelSize, ParticleSize,
+    bytes_text,
+};
 pub use model::{
     BodyId, ConstraintHandle, ContactSettings, Handle, InitialMotion, ModelBuilder, SheetBody,
     WallId,
 };
 pub use rigid::{RigidInertia, RigidState};
 pub use run::{
-    MAX_OUTPUTS, MAX_STEPS, Observer, RunOptions, RunPlan, RunSummary, Silent, run, step_count,
+    MAX_OUTPUTS, MAX_STEPS, Observer, RunOptions, RunPlan, RunSummary, Silent, check_memory, run,
+    step_count,
 };
 pub use scene::{
     AutoSection, ContactSection, DEFAULT_DT_SAFETY, DEFAULT_MARGIN_FRACTION, DEFAULT_OUTPUTS,

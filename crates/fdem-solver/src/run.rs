@@ -2,6 +2,7 @@
 
 use crate::SolverError;
 use crate::engine::Simulation;
+use crate::memory::bytes_text;
 use crate::output::{
     BODIES_HEADER, CsvSeries, ENERGY_HEADER, VtkSeries, WALLS_HEADER, body_rows, contact_snapshot,
     energy_row, wall_rows, write_atomically,
@@ -119,18 +120,72 @@ pub fn step_count(duration: f64, dt: f64) -> u64 {
     ((duration / dt) * (1.0 - 1e-9)).ceil().max(1.0) as u64
 }
 
+/// Refuses, before anything is allocated, a run of `scene` with `options` whose
+/// estimated memory exceeds `available` (bytes; `None` when the platform does not say),
+/// in one line with the estimate, what is available and what to change; returns the
+/// estimate (bytes). The estimate is the model's ([`crate::ModelSize::bytes`], the rule of a
+/// specimen's preparation) plus, with `options.vtk`, one VTU frame and, with
+/// `options.contacts`, one contact snapshot.
+///
+/// # Errors
+/// [`SolverError::InvalidScene`] when the run cannot fit; a mesh that cannot be built.
+pub fn check_memory(
+    scene: &Scene,
+    options: &RunOptions,
+    available: Option<u64>,
+) -> Result<u64, SolverError> {
+    let size = scene.model_size()?;
+    let model = size.bytes();
+    let mut outputs = Vec::new();
+    if options.vtk {
+        outputs.push(("a VTU frame", size.frame_bytes(), "--vtk"));
+    }
+    if options.contacts {
+        outputs.push(("a contact snapshot", size.snapshot_bytes(), "--contacts"));
+    }
+    let need = outputs
+        .iter()
+        .fold(model, |sum, (_, bytes, _)| sum.saturating_add(*bytes));
+    let Some(have) = available.filter(|&have| need > have) else {
+        return Ok(need);
+    };
+    let mut parts = format!("{} for the model", bytes_text(model));
+    let mut flags = Vec::new();
+    for (what, bytes, flag) in outputs {
+        parts.push_str(&format!(", {} for {what}", bytes_text(bytes)));
+        flags.push(flag);
+    }
+    let without = if flags.is_empty() {
+        String::new()
+    } else {
+        format!(", or run without {}", flags.join(" and "))
+    };
+    Err(SolverError::InvalidScene(format!(
+        "{} particles with {} nodes and {} elements need about {} ({parts}), but {} are \
+         available; use fewer particles, a lower mesh.level, linear elements, fewer \
+         mesh.shells or model = \"rigid\"{without}",
+        size.particles,
+        size.nodes,
+        size.elements(),
+        bytes_text(need),
+        bytes_text(have)
+    )))
+}
+
 /// Runs `scene` to its duration, writing outputs into `options.out_dir`.
 ///
 /// Outputs are at `t = 0` and every output interval (the first step at or past each
 /// output time) and at the end. On an instability, an interruption or an I/O error the
 /// outputs written so far are completed (renamed into place) with a summary whose status
-/// says what happened, and the error is returned.
+/// says what happened, and the error is returned. A run the memory the system reports
+/// available cannot hold is refused first ([`check_memory`]).
 pub fn run(
     scene: &Scene,
     options: &RunOptions,
     observer: &mut dyn Observer,
     interrupt: &AtomicBool,
 ) -> Result<RunSummary, SolverError> {
+    check_memory(scene, options, fdem_core::fs::available_memory())?;
     let mut sim = scene.build()?;
     let steps = step_count(scene.simulation.duration, sim.dt());
     if steps > MAX_STEPS {

@@ -7,6 +7,7 @@
 
 use crate::SolverError;
 use crate::engine::{Guard, Simulation, TimeStep};
+use crate::memory::{ModelSize, ParticleSize};
 use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
 use crate::toml_input::{
     Number, axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
@@ -865,14 +866,54 @@ impl Scene {
             .collect()
     }
 
+    /// Whether the scene's model has contact: contact on, and something to touch (a lone
+    /// particle with no wall has none).
+    fn models_contact(&self) -> bool {
+        self.contact_section().enabled && (self.particles.len() >= 2 || !self.walls.is_empty())
+    }
+
+    /// The size of the scene's model (nodes, elements, contact nodes), counted from one
+    /// template mesh per kind of mesh before anything is allocated. An `auto` particle is
+    /// counted as deformable, the larger of its two models.
+    ///
+    /// # Errors
+    /// A mesh that cannot be built.
+    pub fn model_size(&self) -> Result<ModelSize, SolverError> {
+        let contact = self.models_contact();
+        let mut kinds: Vec<((u32, bool, u32), ParticleSize)> = Vec::new();
+        let mut size = ModelSize::default();
+        for p in &self.particles {
+            let mesh = p.mesh.unwrap_or_default();
+            let key = (
+                mesh.level,
+                mesh.order == ElementOrder::Quadratic,
+                mesh.shells,
+            );
+            let particle = match kinds.iter().find(|(k, _)| *k == key) {
+                Some(&(_, s)) => s,
+                None => {
+                    // Sizing and axes move nodes, not their number.
+                    let sphere = MeshSection {
+                        sizing: Sizing::default(),
+                        axes: sphere_axes(),
+                        ..mesh
+                    };
+                    let s = ParticleSize::of(&sphere.template()?);
+                    kinds.push((key, s));
+                    s
+                }
+            };
+            size.add(&particle, 1, p.model == ParticleModel::Rigid, contact);
+        }
+        Ok(size)
+    }
+
     /// The scene as a model: particles, then (with contact on and something to touch)
     /// walls and contact, gravity, the step rule and the guard.
     pub fn model(&self) -> Result<ModelBuilder, SolverError> {
         let mut model = ModelBuilder::new();
         self.add_particles(&mut model)?;
-        let c = self.contact_section();
-        // A lone particle with no wall has nothing to touch: model no contact.
-        if c.enabled && (self.particles.len() >= 2 || !self.walls.is_empty()) {
+        if self.models_contact() {
             let settings = self.contact_settings(&model)?;
             if !self.simulation.allow_initial_overlap {
                 let limit = 0.5 * settings.depth_limit.unwrap_or(settings.margin);

@@ -61,34 +61,25 @@ pub struct Counts {
     pub solid_fraction: f64,
 }
 
-/// Bytes per node of the node state (positions, reference positions, velocities, forces,
-/// mass and inverse mass; docs/PERFORMANCE.md, "Memory").
-const BYTES_PER_NODE: u64 = 112;
-
-/// Bytes per element: the kernel's record, its bound and the connectivity, and for linear
-/// elements their copy in the lane kernel's blocks (linear, quadratic; docs/PERFORMANCE.md,
-/// "Memory").
-const BYTES_PER_ELEMENT: [u64; 2] = [234, 208];
-
-/// Bytes per surface node for the contact model and the rest of a run (candidates,
-/// history, scratch), rounded up from a measured whole-process peak (docs/PERFORMANCE.md,
-/// "Memory").
-const BYTES_PER_SURFACE_NODE: u64 = 1024;
-
-/// A run's fixed memory beside its particles (binary, thread stacks, the membrane of a
-/// small test).
-const BYTES_BASE: u64 = 64 << 20;
-
 impl Counts {
     /// Estimated peak memory of a preparation or test of these counts (bytes): node
-    /// state, elements, contact data per surface node and a fixed base.
+    /// state, elements, contact data per surface node and a fixed base, by the rule
+    /// scenes use too ([`fdem_solver::ModelSize::bytes`]; docs/PERFORMANCE.md, "Memory").
     pub fn memory_estimate(&self, quadratic: bool) -> u64 {
-        let per_element = BYTES_PER_ELEMENT[usize::from(quadratic)];
-        self.nodes
-            .saturating_mul(BYTES_PER_NODE)
-            .saturating_add(self.elements.saturating_mul(per_element))
-            .saturating_add(self.surface_nodes.saturating_mul(BYTES_PER_SURFACE_NODE))
-            .saturating_add(BYTES_BASE)
+        let (linear_elements, quadratic_elements) = if quadratic {
+            (0, self.elements)
+        } else {
+            (self.elements, 0)
+        };
+        fdem_solver::ModelSize {
+            particles: self.particles,
+            nodes: self.nodes,
+            linear_elements,
+            quadratic_elements,
+            contact_nodes: self.surface_nodes,
+            rigid_triangles: 0,
+        }
+        .bytes()
     }
 
     /// One line per size class: its model and what it simulates per particle, and for

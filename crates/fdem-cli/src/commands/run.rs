@@ -1,6 +1,6 @@
 //! `fdem run SCENE.toml --out DIR`: run a scene file.
 
-use fdem_solver::{Observer, RunOptions, RunPlan, Scene, run as run_scene};
+use fdem_solver::{Observer, RunOptions, RunPlan, Scene, check_memory, run as run_scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -58,6 +58,13 @@ impl Observer for Progress {
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     // `run_scene` builds (and so validates) everything before it creates any output.
     let scene = Scene::load(&args.scene)?;
+    let options = RunOptions {
+        out_dir: args.out.clone(),
+        vtk: args.vtk,
+        contacts: args.contacts,
+    };
+    // A scene that cannot fit is refused before any mesh but the templates is built.
+    check_memory(&scene, &options, fdem_core::fs::available_memory())?;
     // Every `auto` decision, once per kind of particle.
     let mut decisions: Vec<String> = Vec::new();
     for (_, estimate) in scene.resolved_models()? {
@@ -70,11 +77,6 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     }
     let interrupt = super::interrupt_flag();
     let mut progress = Progress { bar: None };
-    let options = RunOptions {
-        out_dir: args.out.clone(),
-        vtk: args.vtk,
-        contacts: args.contacts,
-    };
     let result = run_scene(&scene, &options, &mut progress, &interrupt);
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
