@@ -203,8 +203,12 @@ fn run_writes_the_documented_outputs() {
     assert!(out_dir.join("walls.csv").exists());
     let bodies = std::fs::read_to_string(out_dir.join("bodies.csv")).unwrap();
     assert!(bodies.starts_with("time,body,x,y,z,vx,vy,vz,wx,wy,wz\n"));
-    // The plan is announced up front on stderr.
-    assert!(String::from_utf8_lossy(&out.stderr).contains("steps of dt"));
+    // The plan is announced up front on stderr, with the run identifier of summary.json.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("steps of dt"), "{stderr}");
+    let run_id = summary["run_id"].as_str().unwrap();
+    assert_eq!(run_id.len(), 25, "{run_id}");
+    assert!(stderr.contains(&format!("run {run_id}: ")), "{stderr}");
 }
 
 #[test]

@@ -16,6 +16,8 @@
 //! - **A stable hash** ([`hash`]): FNV-1a, for file checksums and run keys.
 //! - **Numbers in messages** ([`number`]): [`number::Number`] prints a value plain where
 //!   that is short and in exponent form otherwise.
+//! - **Run identifiers** ([`run_id`]): the UTC start and the input's hash that name a
+//!   run in its `summary.json`.
 //! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
 //!   for the SVG figures.
 //!
@@ -54,4 +56,5 @@ pub mod geometry;
 pub mod hash;
 pub mod number;
 pub mod plot;
+pub mod run_id;
 pub mod snapshot;

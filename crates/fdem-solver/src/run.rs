@@ -39,6 +39,8 @@ impl Observer for Silent {}
 /// What a run will cost, known before the first step.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RunPlan {
+    /// The run's identifier ([`fdem_core::run_id`]), also in its `summary.json`.
+    pub run_id: String,
     /// Simulated duration (s).
     pub duration: f64,
     /// Time step (s).
@@ -53,9 +55,12 @@ pub struct RunPlan {
     pub elements: usize,
 }
 
-/// `summary.json`.
+/// `summary.json`: it names the run, and the files beside it belong to that run.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RunSummary {
+    /// The run's identifier: `YYYYMMDDTHHMMSSZ-hhhhhhhh`, its UTC start and the hash of
+    /// the scene as parsed ([`fdem_core::run_id`]).
+    pub run_id: String,
     /// `completed`, `unstable`, `interrupted` or `failed`.
     pub status: String,
     /// The error message when the run did not complete.
@@ -185,6 +190,12 @@ pub fn run(
     observer: &mut dyn Observer,
     interrupt: &AtomicBool,
 ) -> Result<RunSummary, SolverError> {
+    // The scene as parsed, every key written back (comments and layout aside): the same
+    // definition gives the same hash.
+    let run_id = fdem_core::run_id::run_id(
+        scene.to_toml_string()?.as_bytes(),
+        std::time::SystemTime::now(),
+    );
     check_memory(scene, options, fdem_core::fs::available_memory())?;
     let mut sim = scene.build()?;
     let steps = step_count(scene.simulation.duration, sim.dt());
@@ -201,6 +212,7 @@ pub fn run(
     fdem_core::fs::clear_outputs(dir, RUN_OUTPUTS, RUN_SERIES)
         .map_err(|e| SolverError::io("clearing the earlier outputs of", dir, e))?;
     let plan = RunPlan {
+        run_id: run_id.clone(),
         duration: scene.simulation.duration,
         dt: sim.dt(),
         steps,
@@ -229,6 +241,7 @@ pub fn run(
         Err(_) => "failed",
     };
     let summary = RunSummary {
+        run_id,
         status: status.into(),
         error: outcome.as_ref().err().map(|e| e.to_string()),
         steps: sim.step(),

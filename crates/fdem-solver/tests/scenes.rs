@@ -280,6 +280,63 @@ fn a_run_writes_complete_consistent_outputs() {
     );
 }
 
+/// Records the run identifier of the plan.
+#[derive(Default)]
+struct Named(Option<String>);
+
+impl fdem_solver::Observer for Named {
+    fn start(&mut self, plan: &fdem_solver::RunPlan) {
+        self.0 = Some(plan.run_id.clone());
+    }
+}
+
+/// Every run is named: the identifier (UTC start and the hash of the scene as parsed) is
+/// in the plan announced before the first step and in `summary.json`; the CSV files stay
+/// plain. The same scene gives the same hash, another scene another.
+#[test]
+fn every_run_is_named_in_its_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let named = |text: &str, out: &str| {
+        let scene = Scene::from_toml_str(text, "scene.toml").unwrap();
+        let options = RunOptions {
+            out_dir: dir.path().join(out),
+            vtk: false,
+            contacts: false,
+        };
+        let mut observer = Named::default();
+        let summary = run(&scene, &options, &mut observer, &AtomicBool::new(false)).unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(options.out_dir.join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(observer.0.as_deref(), Some(summary.run_id.as_str()));
+        assert_eq!(json["run_id"], summary.run_id.as_str());
+        let energy = std::fs::read_to_string(options.out_dir.join("energy.csv")).unwrap();
+        assert!(energy.starts_with("time,kinetic,"), "{energy}");
+        (scene, summary.run_id)
+    };
+    let seconds = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_secs() as i64
+    };
+    let before = fdem_core::run_id::utc_stamp(seconds());
+    let (scene, id) = named(GOOD, "a");
+    let after = fdem_core::run_id::utc_stamp(seconds());
+    // `YYYYMMDDTHHMMSSZ-hhhhhhhh`.
+    let (stamp, hash) = id.split_once('-').unwrap();
+    assert!(before.as_str() <= stamp && stamp <= after.as_str(), "{id}");
+    let definition = scene.to_toml_string().unwrap();
+    let expected = fdem_core::hash::Fnv1a::of(definition.as_bytes()) >> 32;
+    assert_eq!(hash, format!("{expected:08x}"));
+    // Comments and layout are not the definition; a value is.
+    let (_, same) = named(&format!("# a comment\n{GOOD}"), "b");
+    assert_eq!(same.split_once('-').unwrap().1, hash);
+    let (_, other) = named(&GOOD.replace("0.015", "0.016"), "c");
+    assert_ne!(other.split_once('-').unwrap().1, hash);
+}
+
 /// Exact scaling of one free body (docs/MODEL.md section 4): geometry x h, time and dt x h,
 /// velocities x 1, angular velocities x 1/h. Positions must scale by h and velocities
 /// by 1 at corresponding times, to round-off (1e-9 relative, far above the 1e-16

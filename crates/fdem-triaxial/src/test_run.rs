@@ -120,6 +120,12 @@ pub struct TestStatus {
 /// Receives the plan and progress of a test; returning `false` from `progress` stops the
 /// test as interrupted.
 pub trait TestObserver {
+    /// The test's run identifier, once, when the model is built and the outputs are
+    /// about to start. The default writes `run ID` on stderr (the line `fdem triaxial`
+    /// shows); [`SilentTest`] says nothing.
+    fn run_id(&mut self, run_id: &str) {
+        eprintln!("run {run_id}");
+    }
     /// The cost estimate, once, after the first steps.
     fn plan(&mut self, _plan: &TestPlan) {}
     /// A phase starts.
@@ -134,7 +140,9 @@ pub trait TestObserver {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SilentTest;
 
-impl TestObserver for SilentTest {}
+impl TestObserver for SilentTest {
+    fn run_id(&mut self, _run_id: &str) {}
+}
 
 /// Cost of one phase.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -182,9 +190,13 @@ pub struct ConsolidationResult {
     pub cost: PhaseCost,
 }
 
-/// The `summary.json` of a test.
+/// The `summary.json` of a test: it names the run, and the files beside it belong to
+/// that run.
 #[derive(Clone, Debug, Serialize)]
 pub struct TestSummary {
+    /// The run's identifier: `YYYYMMDDTHHMMSSZ-hhhhhhhh`, its UTC start and the hash of
+    /// the specimen and test definition ([`fdem_core::run_id`]).
+    pub run_id: String,
     /// `completed`, `interrupted` or `failed`.
     pub status: String,
     /// The failure, if any.
@@ -539,7 +551,7 @@ fn check_plan(plan: &TestPlan) -> Result<(), TriaxialError> {
 
 /// The summary before the first step: the plan (steps, step, bound, contact lengths) and
 /// the test's settings; the results are filled in as the test runs.
-fn initial_summary(run: &Run<'_>) -> TestSummary {
+fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
     let (spec, model, sigma_0) = (&run.prepared.spec, &run.model, run.sigma_0);
     let test = &spec.test;
     let velocity = spec.loading_velocity();
@@ -550,6 +562,7 @@ fn initial_summary(run: &Run<'_>) -> TestSummary {
     let shear_steps = spec.shear_steps(dt);
     let membrane = &model.membrane_spec;
     TestSummary {
+        run_id,
         status: "running".into(),
         failure: None,
         test: spec.name.clone(),
@@ -641,6 +654,11 @@ pub fn run_test(
     interrupt: &AtomicBool,
 ) -> Result<TestSummary, TriaxialError> {
     let spec = &prepared.spec;
+    // The definition as TOML, every key written out: the same test gives the same hash.
+    let run_id = fdem_core::run_id::run_id(
+        spec.to_toml_string()?.as_bytes(),
+        std::time::SystemTime::now(),
+    );
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| TriaxialError::io("creating directory", dir, e))?;
     let model = TestModel::build(prepared, options.dt)?;
@@ -685,8 +703,9 @@ pub fn run_test(
         energy: EnergyWindows::default(),
         jumps,
     };
-    let mut summary = initial_summary(&run);
+    let mut summary = initial_summary(&run, run_id);
     check_plan(&summary.plan)?;
+    observer.run_id(&summary.run_id);
     let mut points: Vec<CurvePoint> = Vec::new();
     let mut peak: Option<(String, String)> = None;
     let result = stages(

@@ -32,8 +32,8 @@ struct Progress {
 impl Observer for Progress {
     fn start(&mut self, plan: &RunPlan) {
         eprintln!(
-            "run: {} bodies, {} nodes, {} elements; {} steps of dt = {:.3e} s to t = {:.3e} s",
-            plan.bodies, plan.nodes, plan.elements, plan.steps, plan.dt, plan.duration
+            "run {}: {} bodies, {} nodes, {} elements; {} steps of dt = {:.3e} s to t = {:.3e} s",
+            plan.run_id, plan.bodies, plan.nodes, plan.elements, plan.steps, plan.dt, plan.duration
         );
         if std::io::stderr().is_terminal() {
             let bar = ProgressBar::new(plan.steps);
