@@ -21,9 +21,10 @@ pub const SPECIMEN_FILE: &str = "specimen.fdemspec";
 
 /// Steps of a whole run (preparation, consolidation, shear) over the steps of its shear
 /// at the particles' own bound, for the cost estimate before the study has measured its
-/// own ratio (the membrane and the platens can set a smaller step than the particles;
-/// docs/STUDY.md).
-pub const STEPS_OVER_SHEAR: f64 = 6.0;
+/// own ratio: `[rigid particles only, with deformable particles]`. The membrane sets a
+/// smaller step than rigid particles do, so their ratio is the larger (docs/STUDY.md has
+/// the measured ratios these defaults come from).
+pub const STEPS_OVER_SHEAR: [f64; 2] = [7.5, 2.0];
 
 /// Wall-clock seconds per step and per unit of work (a deformable element, a surface node
 /// of a particle or a membrane node) before the study has measured its own; docs/STUDY.md
@@ -95,7 +96,7 @@ pub struct RunRecord {
     pub peak_memory_bytes: Option<u64>,
     /// Worker threads.
     pub threads: usize,
-    /// The plan's step estimate before [`STEPS_OVER_SHEAR`]'s correction by measured
+    /// The plan's step estimate before the correction by [`STEPS_OVER_SHEAR`] or measured
     /// runs ([`planned_steps`]); 0 in records written before it existed.
     #[serde(default)]
     pub planned_steps: u64,
@@ -184,8 +185,9 @@ pub struct StudyPlan {
     pub total_seconds: f64,
     /// Seconds per unit-step used for the estimate.
     pub seconds_per_unit_step: f64,
-    /// Steps of a run per planned shear step used for the estimate.
-    pub steps_per_planned: f64,
+    /// Steps of a run per planned shear step used for the estimate, `[rigid particles
+    /// only, with deformable particles]`.
+    pub steps_per_planned: [f64; 2],
     /// Where that figure comes from.
     pub throughput_source: String,
 }
@@ -205,7 +207,7 @@ fn membrane_nodes_estimate(run: &RunDef) -> u64 {
 #[derive(Clone, Debug)]
 struct Throughput {
     seconds_per_unit_step: f64,
-    steps_per_planned: f64,
+    steps_per_planned: [f64; 2],
     source: String,
 }
 
@@ -225,16 +227,20 @@ fn throughput(records: &[RunRecord]) -> Throughput {
             .map(|r| r.shear.wall_seconds / (r.shear.steps as f64 * r.units() as f64))
             .collect(),
     );
-    let steps = median(
-        done.iter()
-            .filter(|r| r.planned_steps > 0)
-            .map(|r| r.steps() as f64 / r.planned_steps as f64)
-            .collect(),
-    );
+    let steps = |deformable: bool| {
+        let k = usize::from(deformable);
+        median(
+            done.iter()
+                .filter(|r| r.planned_steps > 0 && (r.elements > 0) == deformable)
+                .map(|r| r.steps() as f64 / r.planned_steps as f64)
+                .collect(),
+        )
+        .unwrap_or(STEPS_OVER_SHEAR[k])
+    };
     match rate {
         Some(rate) => Throughput {
             seconds_per_unit_step: rate,
-            steps_per_planned: steps.unwrap_or(STEPS_OVER_SHEAR),
+            steps_per_planned: [steps(false), steps(true)],
             source: format!("the median of {} finished run(s) of this study", done.len()),
         },
         None => Throughput {
@@ -275,7 +281,8 @@ pub fn plan(runs: &[RunDef], out: &Path) -> Result<StudyPlan, StudyError> {
     let mut planned = Vec::new();
     for (run, state) in runs.iter().zip(states) {
         let counts = run.spec.counts()?;
-        let steps = (measured.steps_per_planned * planned_steps(run)? as f64) as u64;
+        let ratio = measured.steps_per_planned[usize::from(counts.elements > 0)];
+        let steps = (ratio * planned_steps(run)? as f64) as u64;
         let units = counts.elements + counts.surface_nodes + membrane_nodes_estimate(run);
         let seconds = match state {
             "finished" => 0.0,

@@ -152,11 +152,12 @@ fn print_plan(plan: &StudyPlan) {
         );
     }
     eprintln!(
-        "estimated {} in all ({:.2e} s per unit-step, {:.2} steps per planned step, from {}; \
-         cheapest runs first; docs/STUDY.md)",
+        "estimated {} in all ({:.2e} s per unit-step, {:.1} / {:.1} steps per planned step for \
+         rigid / deformable particles, from {}; cheapest runs first; docs/STUDY.md)",
         duration(plan.total_seconds),
         plan.seconds_per_unit_step,
-        plan.steps_per_planned,
+        plan.steps_per_planned[0],
+        plan.steps_per_planned[1],
         plan.throughput_source
     );
 }
