@@ -674,3 +674,49 @@ fn negative_flag_values_are_refused_as_values() {
         assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
     }
 }
+
+#[test]
+fn bad_study_input_is_one_line_and_runs_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study");
+    let out_s = out.to_str().unwrap();
+    for (args, says) in [
+        (vec!["--preset", "huge"], "unknown study preset 'huge'"),
+        (
+            vec!["--preset", "quick", "--seeds", "0"],
+            "--seeds must be at least 1",
+        ),
+        (
+            vec!["--preset", "quick", "--tests", "E9"],
+            "'E9' is not a test of this study",
+        ),
+        (
+            vec!["--preset", "quick", "--strain", "1e300"],
+            "--strain must lie in",
+        ),
+        (vec![], "give one of --preset NAME"),
+    ] {
+        let mut all = vec!["study", "--out", out_s];
+        all.extend(args.iter().copied());
+        let o = fdem(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+        assert!(!out.join("runs").exists(), "{args:?} started runs");
+    }
+    // The plan alone runs nothing and names every run.
+    let o = fdem(&[
+        "study", "--preset", "quick", "--model", "rigid", "--out", out_s, "--plan",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    for label in [
+        "Q1-rigid-linear-seed1",
+        "Q2s-rigid-linear-seed1",
+        "estimated",
+    ] {
+        assert!(err.contains(label), "{err}");
+    }
+    assert!(!out.join("runs").exists());
+}

@@ -146,7 +146,7 @@ fn kinds(results: &Results) -> Vec<(String, bool, String)> {
     k
 }
 
-/// Cost of the whole run (preparation and test wall seconds) against h on log axes, one
+/// Cost of the whole run (preparation and test CPU seconds) against h on log axes, one
 /// marker set per series, variant and model, with the ideal `h^-4` line through each
 /// reference.
 fn cost_chart(results: &Results, path: &Path) -> Result<(), StudyError> {
@@ -154,8 +154,8 @@ fn cost_chart(results: &Results, path: &Path) -> Result<(), StudyError> {
     let (h0, h1) = hs.fold((1.0f64, 1.0f64), |(a, b), h| (a.min(h), b.max(h)));
     let (y0, y1) = log_range(results.groups.iter().flat_map(|g| {
         [
-            g.wall_seconds,
-            g.wall_seconds * (h1 / h0).powf(IDEAL_EXPONENT),
+            g.cpu_seconds,
+            g.cpu_seconds * (h1 / h0).powf(IDEAL_EXPONENT),
         ]
     }));
     let svg = figure::svg((900, 600), |root| {
@@ -165,7 +165,7 @@ fn cost_chart(results: &Results, path: &Path) -> Result<(), StudyError> {
             (h0 / 1.1..h1 * 1.1).log_scale(),
             (y0..y1).log_scale(),
         )?;
-        chart.draw_axes(&STYLE, "h", "wall seconds (preparation + test)")?;
+        chart.draw_axes(&STYLE, "h", "CPU seconds (preparation + test)")?;
         for (i, (series, exact, model)) in kinds(results).into_iter().enumerate() {
             let points: Vec<(f64, f64, f64)> = results
                 .groups
@@ -175,7 +175,7 @@ fn cost_chart(results: &Results, path: &Path) -> Result<(), StudyError> {
                         && g.model == model
                         && (g.exact_scaling || g.reference) == exact
                 })
-                .map(|g| (g.h, g.wall_seconds, g.wall_spread))
+                .map(|g| (g.h, g.cpu_seconds, g.cpu_spread))
                 .collect();
             let name = format!(
                 "{series}, {}, {model}",
@@ -184,7 +184,7 @@ fn cost_chart(results: &Results, path: &Path) -> Result<(), StudyError> {
             chart.draw_markers(&points, colour(i), marker_of(&model), Some(&name))?;
         }
         for g in results.groups.iter().filter(|g| g.reference) {
-            let line = [h0, h1].map(|h| (h, g.wall_seconds * (h / g.h).powf(IDEAL_EXPONENT)));
+            let line = [h0, h1].map(|h| (h, g.cpu_seconds * (h / g.h).powf(IDEAL_EXPONENT)));
             chart.draw_reference_line(line[0], line[1], figure::RGBColor(120, 120, 120))?;
         }
         chart.draw_legend(&STYLE, SeriesLabelPosition::UpperRight)
@@ -240,11 +240,7 @@ fn speed_accuracy_chart(results: &Results, path: &Path) -> Result<(), StudyError
             ),
         ] {
             let mut chart = STYLE.chart(area, title, (x0..x1).log_scale(), 0f64..y_max)?;
-            chart.draw_axes(
-                &STYLE,
-                "speed-up over the original (wall time)",
-                "error (%)",
-            )?;
+            chart.draw_axes(&STYLE, "speed-up over the original (CPU time)", "error (%)")?;
             for (i, (series, exact, model)) in kinds(results).into_iter().enumerate() {
                 let points: Vec<(f64, f64, f64)> = coarse
                     .iter()

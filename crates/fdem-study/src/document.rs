@@ -146,7 +146,8 @@ fn tests_table(d: &mut String, results: &Results) {
         "Relative errors in % (peak eta, residual eta, initial modulus E_i), differences in \
          percentage points of strain (eps_a at peak, eps_v at the end, dilatancy onset), the \
          RMS differences of the curves (eta, and eps_v in %), the mean normal force ratio \
-         (h^2 expected) and the speed-up of the whole run over the original's. \"Within \
+         (h^2 expected) and the speed-up of the whole run (preparation and test) over the \
+         original's, in CPU seconds. \"Within \
          scatter\": the error is not larger than the original's own relative seed-to-seed \
          spread.\n"
     );
@@ -520,7 +521,7 @@ fn models(d: &mut String, results: &Results) {
     let _ = writeln!(d, "## Rigid against deformable\n");
     let _ = writeln!(
         d,
-        "| test | seed | peak eta rigid / deformable | eps_v end (%) rigid / deformable | wall (s) rigid / deformable |"
+        "| test | seed | peak eta rigid / deformable | eps_v end (%) rigid / deformable | CPU (s) rigid / deformable |"
     );
     let _ = writeln!(d, "|---|---|---|---|---|");
     for (a, b) in rows {
@@ -534,8 +535,8 @@ fn models(d: &mut String, results: &Results) {
             mb.peak_eta,
             100.0 * ma.eps_v_final,
             100.0 * mb.eps_v_final,
-            a.record.wall_seconds(),
-            b.record.wall_seconds()
+            a.record.cpu_seconds(),
+            b.record.cpu_seconds()
         );
     }
     let _ = writeln!(d);

@@ -65,11 +65,13 @@ pub struct Group {
     pub entries: Vec<usize>,
     /// The errors of each seed against the reference (empty without a reference).
     pub errors: Vec<Errors>,
-    /// Mean wall seconds of its runs.
-    pub wall_seconds: f64,
-    /// Spread of the wall seconds.
-    pub wall_spread: f64,
-    /// Speed-up of the whole run over the reference's (mean walls).
+    /// Mean CPU seconds of its runs (preparation and test, all threads): the cost the
+    /// study charts, since it is far less disturbed than wall time when other work shares
+    /// the machine (docs/STUDY.md).
+    pub cpu_seconds: f64,
+    /// Spread of the CPU seconds.
+    pub cpu_spread: f64,
+    /// Speed-up of the whole run over the reference's (mean CPU seconds).
     pub speedup: f64,
 }
 
@@ -141,17 +143,17 @@ fn group(entries: &[Entry]) -> Vec<Group> {
                 reference: e.run.reference,
                 entries: vec![i],
                 errors: Vec::new(),
-                wall_seconds: f64::NAN,
-                wall_spread: f64::NAN,
+                cpu_seconds: f64::NAN,
+                cpu_spread: f64::NAN,
                 speedup: f64::NAN,
             }),
         }
     }
     for g in &mut groups {
         let (mean, spread) =
-            mean_and_spread(g.entries.iter().map(|&i| entries[i].record.wall_seconds()));
-        g.wall_seconds = mean;
-        g.wall_spread = spread;
+            mean_and_spread(g.entries.iter().map(|&i| entries[i].record.cpu_seconds()));
+        g.cpu_seconds = mean;
+        g.cpu_spread = spread;
     }
     let snapshot = groups.clone();
     for g in &mut groups {
@@ -160,7 +162,7 @@ fn group(entries: &[Entry]) -> Vec<Group> {
         }) else {
             continue;
         };
-        g.speedup = reference.wall_seconds / g.wall_seconds;
+        g.speedup = reference.cpu_seconds / g.cpu_seconds;
         g.errors = g
             .entries
             .iter()

@@ -3,7 +3,7 @@
 //! charts.
 
 use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress};
-use crate::commands::triaxial::{TestProgress, duration};
+use crate::commands::triaxial::{TestProgress, check_strain, duration};
 use anyhow::bail;
 use fdem_mesh::ElementOrder;
 use fdem_study::run::PlannedRun;
@@ -163,14 +163,7 @@ fn print_plan(plan: &StudyPlan) {
 }
 
 fn options(args: &StudyArgs) -> anyhow::Result<StudyOptions> {
-    if let Some(strain) = args.strain
-        && !(strain > 0.0 && strain <= fdem_triaxial::MAX_TARGET_STRAIN)
-    {
-        bail!(
-            "--strain must lie in (0, {}], got {strain}",
-            fdem_triaxial::MAX_TARGET_STRAIN
-        );
-    }
+    check_strain(args.strain)?;
     Ok(StudyOptions {
         model: args.model.model(),
         order: match args.order {

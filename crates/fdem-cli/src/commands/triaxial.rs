@@ -272,16 +272,23 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
     Ok(prepared)
 }
 
-/// Prepares (or reuses), tests and reports.
-pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
-    if let Some(strain) = args.strain
+/// Refuses a `--strain` outside `(0, MAX_TARGET_STRAIN]`.
+pub(crate) fn check_strain(strain: Option<f64>) -> anyhow::Result<()> {
+    if let Some(strain) = strain
         && !(strain > 0.0 && strain <= fdem_triaxial::MAX_TARGET_STRAIN)
     {
         bail!(
-            "--strain must lie in (0, {}], got {strain}",
-            fdem_triaxial::MAX_TARGET_STRAIN
+            "--strain must lie in (0, {}], got {}",
+            fdem_triaxial::MAX_TARGET_STRAIN,
+            fdem_core::number::Number(strain)
         );
     }
+    Ok(())
+}
+
+/// Prepares (or reuses), tests and reports.
+pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
+    check_strain(args.strain)?;
     if let Some(j) = args.energy_jumps
         && !(j.is_finite() && j >= 0.0)
     {
