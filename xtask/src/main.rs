@@ -17,6 +17,8 @@ use std::process::ExitCode;
 const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial   the main job: the triaxial test of E4s (linear meshes) into out/triaxial/;\n             --quick runs the quick specimen into out/quick/; other options go to\n             `fdem triaxial` (--test NAME, --model deformable|rigid|auto, --order linear|quadratic,\n             --level N, --strain S, --vtk, --threads N, --fresh, --out DIR, --config FILE);\n             a preset with --model rigid or auto gets linear surfaces unless --order is given\n  study      a coarse-graining study (`fdem study`, docs/STUDY.md): --preset quick|equal|binary|paper
              or --series FILE, --model, --order, --seeds N, --tests A,B, --strain S, --out DIR
              (default out/study/PRESET), --report DIR (RESULTS.md and results/), --plan, --report-only
+  stability  stability maps of the step, penalty and damping (`fdem stability`, docs/STABILITY.md):
+             --quick, --out DIR (default out/stability), --report DIR (STABILITY.md and results/)
   preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
@@ -24,6 +26,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("triaxial") => triaxial(&args[1..]),
         Some("study") => study(&args[1..]),
+        Some("stability") => stability(&args[1..]),
         Some("preflight") => preflight(&args[1..]),
         Some("docs") => docs(),
         Some("-h" | "--help") | None => {
@@ -141,6 +144,29 @@ fn study(rest: &[String]) -> anyhow::Result<()> {
     let status = fdem(&args)?;
     if !status.success() {
         bail!("fdem study failed ({status})");
+    }
+    Ok(())
+}
+
+/// Stability maps: `fdem stability` in release mode, into `out/stability` unless `--out`
+/// is given.
+fn stability(rest: &[String]) -> anyhow::Result<()> {
+    let mut args: Vec<String> = vec!["stability".into()];
+    args.extend(rest.iter().cloned());
+    if !rest.iter().any(|a| a == "--out" || a.starts_with("--out=")) {
+        args.extend(["--out".to_string(), "out/stability".to_string()]);
+    }
+    args.extend([
+        "--invoked-as".to_string(),
+        "cargo xtask stability".to_string(),
+    ]);
+    eprintln!(
+        "building fdem (release) and running: fdem {}",
+        args.join(" ")
+    );
+    let status = fdem(&args)?;
+    if !status.success() {
+        bail!("fdem stability failed ({status})");
     }
     Ok(())
 }

@@ -50,6 +50,8 @@ enum Command {
     // A negative number is a value to check (and refuse with its range), not a flag.
     #[command(allow_negative_numbers = true)]
     Study(commands::study::StudyArgs),
+    /// Stability maps: the test model of a dense packing at multiples of its stable step, over the penalty and the damping, for rigid, linear and quadratic particles; STABILITY.md.
+    Stability(commands::stability::StabilityArgs),
     /// Contact-force micro-analysis of contact snapshots: DBSCAN clustering into particle contacts, statistics, validation, force_distribution.svg.
     // A negative number is a value to check (and refuse with its range), not a flag.
     #[command(allow_negative_numbers = true)]
@@ -90,6 +92,9 @@ fn main() -> ExitCode {
         }
         Command::Compare(args) => commands::compare::run(&args),
         Command::Study(args) => commands::on_pool(args.threads, || commands::study::run(&args)),
+        Command::Stability(args) => {
+            commands::on_pool(args.threads, || commands::stability::run(&args))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -17,6 +17,8 @@
 //!   seeds.
 //! - **Results** ([`report`], [`charts`], [`document`]): `runs.csv`, the charts and
 //!   `RESULTS.md` with the paper's findings checked.
+//! - **Stability maps** ([`stability`]): probes of a dense packing over the step, the
+//!   penalty and the damping, for each particle model, and `STABILITY.md`.
 //!
 //! # What it does not own
 //! Specimens, preparation and the test (`fdem-triaxial`), the clustering of contact
@@ -32,6 +34,7 @@ pub mod metrics;
 pub mod report;
 pub mod run;
 pub mod series;
+pub mod stability;
 
 pub use document::{Provenance, results_markdown, write_results};
 pub use error::StudyError;

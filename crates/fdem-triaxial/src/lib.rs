@@ -28,6 +28,8 @@
 //! - **The membrane** ([`MembraneForces`], [`membrane_mesh`]): constant-strain St
 //!   Venant-Kirchhoff triangles with a follower pressure, the enclosed volume and
 //!   containment of the closed surface with the platens.
+//! - **Stability probes** ([`probe`]): the test model run for a few thousand steps at a
+//!   multiple of its stable step, classified by what stopped it (docs/STABILITY.md).
 //! - **The test** ([`run_test`], [`TestModel`]): servo-controlled consolidation under the
 //!   confining pressure, shear at constant platen velocity, `curve.csv`, `summary.json`,
 //!   peak contact snapshots, `eta.svg` and `eps_v.svg` ([`CurvePoint`], [`summarize`],
@@ -59,6 +61,7 @@ mod membrane;
 mod placement;
 mod plot;
 mod prepare;
+mod probe;
 mod remodel;
 mod spec;
 mod test_run;
@@ -83,6 +86,7 @@ pub use prepare::{
     Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, check_memory, particle_sections,
     preparation_walls, prepare, specimen_time_step, unbalanced_force_ratio,
 };
+pub use probe::{ProbeOutcome, STABLE_ENERGY_ERROR, StabilityClass, probe};
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,
     MAX_OVERLAP_DEFORMABLE, MAX_OVERLAP_RIGID, ORIGINAL_SIZE, PRESETS, PreparationSection, Preset,

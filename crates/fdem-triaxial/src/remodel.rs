@@ -32,8 +32,23 @@ impl PreparedSpecimen {
     /// # Errors
     /// A definition the new model cannot build, or a state that does not fit it.
     pub fn in_model(&self, model: ParticleModel) -> Result<PreparedSpecimen, TriaxialError> {
+        self.in_model_and_order(model, self.spec.mesh.order)
+    }
+
+    /// The same packing in `model` with particle meshes of element `order`: as
+    /// [`PreparedSpecimen::in_model`], the undeformed mesh of the other order placed at
+    /// each particle's fitted motion.
+    ///
+    /// # Errors
+    /// As [`PreparedSpecimen::in_model`].
+    pub fn in_model_and_order(
+        &self,
+        model: ParticleModel,
+        order: fdem_mesh::ElementOrder,
+    ) -> Result<PreparedSpecimen, TriaxialError> {
         let mut spec = self.spec.clone();
         spec.model = model;
+        spec.mesh.order = order;
         spec.validate(&spec.name)?;
         let (dt, _, _) = specimen_time_step(&spec)?;
         let target = PreparedSpecimen {

@@ -7,6 +7,7 @@ pub mod micro;
 pub mod run;
 pub mod scale;
 pub mod specimen;
+pub mod stability;
 pub mod study;
 pub mod triaxial;
 
@@ -182,4 +183,26 @@ pub fn print_applied(applied: &[fdem_solver::Applied], format: Format) -> anyhow
         }
     }
     Ok(())
+}
+
+/// The command line as a generated document names it: `name` (the `--invoked-as` text,
+/// else `default`) and the arguments after the subcommand, without `--invoked-as`.
+pub fn command_line(invoked_as: Option<&str>, default: &str) -> String {
+    let mut words: Vec<String> = Vec::new();
+    let mut skip = false;
+    for w in std::env::args().skip(2) {
+        if std::mem::take(&mut skip) {
+            continue;
+        }
+        if w == "--invoked-as" {
+            skip = true;
+            continue;
+        }
+        if !w.starts_with("--invoked-as=") {
+            words.push(w);
+        }
+    }
+    format!("{} {}", invoked_as.unwrap_or(default), words.join(" "))
+        .trim_end()
+        .to_string()
 }

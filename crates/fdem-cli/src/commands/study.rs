@@ -177,32 +177,6 @@ fn options(args: &StudyArgs) -> anyhow::Result<StudyOptions> {
     })
 }
 
-/// The command as RESULTS.md names it.
-fn command_line(args: &StudyArgs) -> String {
-    let given: Vec<String> = std::env::args().skip(2).collect();
-    let mut words: Vec<String> = Vec::new();
-    let mut skip = false;
-    for w in given {
-        if skip {
-            skip = false;
-            continue;
-        }
-        if w == "--invoked-as" {
-            skip = true;
-            continue;
-        }
-        if w.starts_with("--invoked-as=") {
-            continue;
-        }
-        words.push(w);
-    }
-    let name = args
-        .invoked_as
-        .clone()
-        .unwrap_or_else(|| "fdem study".into());
-    format!("{name} {}", words.join(" "))
-}
-
 /// Plans, runs what is not finished, and writes the results.
 pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
     let series = match (&args.preset, &args.series) {
@@ -255,7 +229,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
         outcome?;
         bail!("no finished runs in {} to report", args.out.display());
     }
-    let command = command_line(args);
+    let command = super::command_line(args.invoked_as.as_deref(), "fdem study");
     let written = write_results(&results, &report_dir, &Provenance { command: &command })?;
     let (wall, cpu) = results.total_cost();
     println!(
