@@ -292,7 +292,10 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
     if let Some(j) = args.energy_jumps
         && !(j.is_finite() && j >= 0.0)
     {
-        bail!("--energy-jumps must be a finite energy >= 0 (J), got {j}");
+        bail!(
+            "--energy-jumps must be a finite energy >= 0 (J), got {}",
+            fdem_core::number::Number(j)
+        );
     }
     super::check_output_dir(&args.out)?;
     let interrupt = super::interrupt_flag();
