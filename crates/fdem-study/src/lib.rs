@@ -30,6 +30,7 @@ pub mod charts;
 pub mod cost;
 pub mod document;
 mod error;
+pub mod limits;
 pub mod metrics;
 pub mod report;
 pub mod run;

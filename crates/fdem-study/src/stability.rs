@@ -495,6 +495,7 @@ fn map_chart(rows: &[MapRow], spec: &MapSpec, model: &str, path: &Path) -> Resul
 pub fn write_stability(
     rows: &[MapRow],
     spec: &MapSpec,
+    limits: Option<&[crate::limits::LimitPoint]>,
     dir: &Path,
     command: &str,
 ) -> Result<Vec<PathBuf>, StudyError> {
@@ -512,9 +513,14 @@ pub fn write_stability(
         written.push(path);
         charts.push(name);
     }
+    let mut text = stability_markdown(rows, spec, command, &charts);
+    if let Some(points) = limits {
+        written.extend(crate::limits::write_limits(points, &data)?);
+        text.push_str(&crate::limits::limits_markdown(points));
+        text.push_str("![limits.svg](results/limits.svg)\n");
+    }
     let doc = dir.join("STABILITY.md");
-    write_atomically(&doc, stability_markdown(rows, spec, command, &charts))
-        .map_err(|e| StudyError::io("writing", &doc, e))?;
+    write_atomically(&doc, text).map_err(|e| StudyError::io("writing", &doc, e))?;
     written.push(doc);
     Ok(written)
 }

@@ -31,7 +31,8 @@ fn below_the_bound_is_stable_and_twice_the_bound_is_caught() {
         }
     }
     let report = dir.path().join("report");
-    let written = write_stability(&rows, &spec, &report, "cargo xtask stability --quick").unwrap();
+    let written =
+        write_stability(&rows, &spec, None, &report, "cargo xtask stability --quick").unwrap();
     assert_eq!(written.len(), 4);
     let doc = std::fs::read_to_string(report.join("STABILITY.md")).unwrap();
     assert!(doc.contains("cargo xtask stability --quick"));

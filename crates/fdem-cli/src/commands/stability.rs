@@ -2,7 +2,9 @@
 //! linear and quadratic particles (docs/STABILITY.md).
 
 use crate::commands::specimen::PreparationProgress;
+use crate::commands::study::StudyProgress;
 use crate::commands::triaxial::duration;
+use fdem_study::limits::run_limits;
 use fdem_study::stability::{MapSpec, run_map, write_stability};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -72,8 +74,19 @@ pub fn run(args: &StabilityArgs) -> anyhow::Result<()> {
         &interrupt,
     )?;
     preparation.finish();
+    // The limits of the rigid model: quick tests over the particles' modulus.
+    let limits = if args.quick {
+        None
+    } else {
+        let mut study = StudyProgress::new(&interrupt);
+        Some(run_limits(
+            &args.out.join("limits"),
+            &mut study,
+            &interrupt,
+        )?)
+    };
     let command = super::command_line(args.invoked_as.as_deref(), "fdem stability");
-    let written = write_stability(&rows, &spec, &report, &command)?;
+    let written = write_stability(&rows, &spec, limits.as_deref(), &report, &command)?;
     println!(
         "{} probes; wrote {}",
         rows.len(),

@@ -65,12 +65,28 @@ pub struct StudyArgs {
 }
 
 /// Prints the study's plan and progress on stderr and lends the bars of each run.
-struct StudyProgress {
+pub(crate) struct StudyProgress {
     preparation: PreparationProgress,
     test: TestProgress,
     start: Instant,
     remaining: f64,
     done: usize,
+}
+
+impl StudyProgress {
+    /// A reporter with bars on a terminal, stopping when `interrupt` is set.
+    pub(crate) fn new(interrupt: &Arc<AtomicBool>) -> Self {
+        StudyProgress {
+            preparation: PreparationProgress::new(
+                std::io::stderr().is_terminal(),
+                Arc::clone(interrupt),
+            ),
+            test: TestProgress::new(Arc::clone(interrupt)),
+            start: Instant::now(),
+            remaining: 0.0,
+            done: 0,
+        }
+    }
 }
 
 impl StudyObserver for StudyProgress {
@@ -196,16 +212,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
     let mut outcome = Ok(());
     if !args.report_only {
         let interrupt: Arc<AtomicBool> = super::interrupt_flag();
-        let mut progress = StudyProgress {
-            preparation: PreparationProgress::new(
-                std::io::stderr().is_terminal(),
-                Arc::clone(&interrupt),
-            ),
-            test: TestProgress::new(Arc::clone(&interrupt)),
-            start: Instant::now(),
-            remaining: 0.0,
-            done: 0,
-        };
+        let mut progress = StudyProgress::new(&interrupt);
         match run_study(&runs, &args.out, &mut progress, &interrupt) {
             Ok(records) => {
                 let failed: Vec<&str> = records
