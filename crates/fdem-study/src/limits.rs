@@ -7,6 +7,7 @@ use crate::metrics::{mean_and_spread, measure};
 use crate::run::{StudyObserver, finished_record, run_dir, run_study};
 use crate::{RunDef, StudyError};
 use fdem_core::fs::write_atomically;
+use fdem_mesh::ElementOrder;
 use fdem_solver::ParticleModel;
 use fdem_triaxial::quick_spec;
 use std::path::{Path, PathBuf};
@@ -18,29 +19,133 @@ pub const MODULI: [f64; 4] = [40e9, 10e9, 2.5e9, 0.625e9];
 /// Seeds per modulus and model.
 pub const SEEDS: u64 = 3;
 
-/// The runs: the quick test at each modulus in both models, seeds 1 to [`SEEDS`].
+/// The quick test at modulus `e` in `model` with elements of `order`, seed `seed`.
+fn limit_run(
+    e: f64,
+    model: ParticleModel,
+    order: ElementOrder,
+    seed: u64,
+) -> Result<RunDef, StudyError> {
+    let mut spec = quick_spec();
+    spec.material.youngs_modulus = e;
+    spec.model = model;
+    spec.mesh.order = order;
+    spec.seed = seed;
+    spec.name = format!("quick-E{}GPa", e / 1e9);
+    spec.validate(&spec.name)?;
+    Ok(RunDef {
+        series: "limits".into(),
+        test: spec.name.clone(),
+        reference: false,
+        seed,
+        spec,
+    })
+}
+
+/// The runs: the quick test at each modulus in both models (linear elements), and at the
+/// quick specimen's own modulus with quadratic elements; seeds 1 to [`SEEDS`].
 pub fn limit_runs() -> Result<Vec<RunDef>, StudyError> {
     let mut runs = Vec::new();
     for e in MODULI {
         for model in [ParticleModel::Rigid, ParticleModel::Deformable] {
             for seed in 1..=SEEDS {
-                let mut spec = quick_spec();
-                spec.material.youngs_modulus = e;
-                spec.model = model;
-                spec.seed = seed;
-                spec.name = format!("quick-E{}GPa", e / 1e9);
-                spec.validate(&spec.name)?;
-                runs.push(RunDef {
-                    series: "limits".into(),
-                    test: spec.name.clone(),
-                    reference: false,
-                    seed,
-                    spec,
-                });
+                runs.push(limit_run(e, model, ElementOrder::Linear, seed)?);
             }
         }
     }
+    for seed in 1..=SEEDS {
+        runs.push(limit_run(
+            quick_spec().material.youngs_modulus,
+            ParticleModel::Deformable,
+            ElementOrder::Quadratic,
+            seed,
+        )?);
+    }
     Ok(runs)
+}
+
+/// Linear against quadratic elements on the quick test at its own modulus.
+#[derive(Clone, Debug)]
+pub struct ElementComparison {
+    /// Peak eta (mean, spread), linear then quadratic.
+    pub peak_eta: [(f64, f64); 2],
+    /// Volumetric strain at the end (mean, spread), linear then quadratic.
+    pub eps_v_final: [(f64, f64); 2],
+    /// Mean CPU seconds of the whole run, linear then quadratic.
+    pub cpu_seconds: [f64; 2],
+    /// Seeds finished, linear then quadratic.
+    pub seeds: [usize; 2],
+}
+
+/// The metrics and CPU seconds of the finished runs among `runs`.
+fn finished_metrics(
+    dir: &Path,
+    runs: &[&RunDef],
+) -> Result<Vec<(crate::metrics::RunMetrics, f64)>, StudyError> {
+    let mut out = Vec::new();
+    for run in runs {
+        if let Some(record) = finished_record(dir, run)?
+            && let Some(peak) = &record.peak
+        {
+            let m = measure(&run_dir(dir, run), peak)?;
+            out.push((m.metrics, record.cpu_seconds()));
+        }
+    }
+    Ok(out)
+}
+
+/// The element comparison from the finished runs in `dir`.
+pub fn compare_elements(dir: &Path) -> Result<ElementComparison, StudyError> {
+    let runs = limit_runs()?;
+    let e = quick_spec().material.youngs_modulus;
+    let pick = |order: ElementOrder| -> Vec<&RunDef> {
+        runs.iter()
+            .filter(|r| {
+                r.spec.material.youngs_modulus == e
+                    && r.model() == ParticleModel::Deformable
+                    && r.spec.mesh.order == order
+            })
+            .collect()
+    };
+    let sets = [
+        finished_metrics(dir, &pick(ElementOrder::Linear))?,
+        finished_metrics(dir, &pick(ElementOrder::Quadratic))?,
+    ];
+    let stat = |k: usize, f: fn(&crate::metrics::RunMetrics) -> f64| {
+        mean_and_spread(sets[k].iter().map(|(m, _)| f(m)))
+    };
+    Ok(ElementComparison {
+        peak_eta: [stat(0, |m| m.peak_eta), stat(1, |m| m.peak_eta)],
+        eps_v_final: [stat(0, |m| m.eps_v_final), stat(1, |m| m.eps_v_final)],
+        cpu_seconds: [0, 1].map(|k| mean_and_spread(sets[k].iter().map(|(_, c)| *c)).0),
+        seeds: [sets[0].len(), sets[1].len()],
+    })
+}
+
+/// The section of STABILITY.md on linear against quadratic elements.
+pub fn elements_markdown(c: &ElementComparison) -> String {
+    let [(l, ls), (q, qs)] = c.peak_eta;
+    let [(lv, lvs), (qv, qvs)] = c.eps_v_final;
+    format!(
+        "## Linear against quadratic elements\n\n\
+         The quick test at its own modulus with deformable particles, {SEEDS} seeds each: \
+         peak eta {l:.4} ± {ls:.4} (linear) against {q:.4} ± {qs:.4} (quadratic), a \
+         difference of {:+.4} against a scatter of {:.4}; eps_v at the end {:.2} ± {:.2} % \
+         against {:.2} ± {:.2} %; {:.0} against {:.0} CPU seconds per run ({:.1} times). \
+         Concentric shells (docs/MESHES.md) are not yet a specimen option, so one shell \
+         against several is measured on single particles only (docs/VERIFICATION.md). \
+         Where exact scaling itself breaks (gravity left unscaled) is measured in \
+         docs/SCALING.md, \"Where it fails\".\n\n",
+        q - l,
+        ls.max(qs),
+        100.0 * lv,
+        100.0 * lvs,
+        100.0 * qv,
+        100.0 * qvs,
+        c.cpu_seconds[0],
+        c.cpu_seconds[1],
+        c.cpu_seconds[1] / c.cpu_seconds[0],
+    )
 }
 
 /// The `auto` criterion's deflection ratio (particle deflection over contact overlap) of
@@ -86,16 +191,19 @@ pub fn run_limits(
     let mut points = Vec::new();
     for e in MODULI {
         let (ratio, auto) = auto_choice(e)?;
-        let mut per_model = [Vec::new(), Vec::new()];
-        for run in runs.iter().filter(|r| r.spec.material.youngs_modulus == e) {
-            let k = usize::from(run.model() == ParticleModel::Deformable);
-            if let Some(record) = finished_record(dir, run)?
-                && let Some(peak) = &record.peak
-            {
-                let m = measure(&run_dir(dir, run), peak)?;
-                per_model[k].push((m.metrics, record.cpu_seconds()));
-            }
-        }
+        let of = |model: ParticleModel| -> Vec<&RunDef> {
+            runs.iter()
+                .filter(|r| {
+                    r.spec.material.youngs_modulus == e
+                        && r.model() == model
+                        && r.spec.mesh.order == ElementOrder::Linear
+                })
+                .collect()
+        };
+        let per_model = [
+            finished_metrics(dir, &of(ParticleModel::Rigid))?,
+            finished_metrics(dir, &of(ParticleModel::Deformable))?,
+        ];
         let stat = |k: usize, f: fn(&crate::metrics::RunMetrics) -> f64| {
             mean_and_spread(per_model[k].iter().map(|(m, _)| f(m)))
         };
@@ -327,7 +435,7 @@ mod tests {
         );
         assert_eq!(
             limit_runs().unwrap().len(),
-            MODULI.len() * 2 * SEEDS as usize
+            (MODULI.len() * 2 + 1) * SEEDS as usize
         );
     }
 }

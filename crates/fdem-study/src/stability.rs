@@ -495,7 +495,10 @@ fn map_chart(rows: &[MapRow], spec: &MapSpec, model: &str, path: &Path) -> Resul
 pub fn write_stability(
     rows: &[MapRow],
     spec: &MapSpec,
-    limits: Option<&[crate::limits::LimitPoint]>,
+    limits: Option<(
+        &[crate::limits::LimitPoint],
+        &crate::limits::ElementComparison,
+    )>,
     dir: &Path,
     command: &str,
 ) -> Result<Vec<PathBuf>, StudyError> {
@@ -514,10 +517,11 @@ pub fn write_stability(
         charts.push(name);
     }
     let mut text = stability_markdown(rows, spec, command, &charts);
-    if let Some(points) = limits {
+    if let Some((points, elements)) = limits {
         written.extend(crate::limits::write_limits(points, &data)?);
         text.push_str(&crate::limits::limits_markdown(points));
-        text.push_str("![limits.svg](results/limits.svg)\n");
+        text.push_str("![limits.svg](results/limits.svg)\n\n");
+        text.push_str(&crate::limits::elements_markdown(elements));
     }
     let doc = dir.join("STABILITY.md");
     write_atomically(&doc, text).map_err(|e| StudyError::io("writing", &doc, e))?;

@@ -4,7 +4,7 @@
 use crate::commands::specimen::PreparationProgress;
 use crate::commands::study::StudyProgress;
 use crate::commands::triaxial::duration;
-use fdem_study::limits::run_limits;
+use fdem_study::limits::{compare_elements, run_limits};
 use fdem_study::stability::{MapSpec, run_map, write_stability};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -79,14 +79,18 @@ pub fn run(args: &StabilityArgs) -> anyhow::Result<()> {
         None
     } else {
         let mut study = StudyProgress::new(&interrupt);
-        Some(run_limits(
-            &args.out.join("limits"),
-            &mut study,
-            &interrupt,
-        )?)
+        let dir = args.out.join("limits");
+        let points = run_limits(&dir, &mut study, &interrupt)?;
+        Some((points, compare_elements(&dir)?))
     };
     let command = super::command_line(args.invoked_as.as_deref(), "fdem stability");
-    let written = write_stability(&rows, &spec, limits.as_deref(), &report, &command)?;
+    let written = write_stability(
+        &rows,
+        &spec,
+        limits.as_ref().map(|(p, e)| (p.as_slice(), e)),
+        &report,
+        &command,
+    )?;
     println!(
         "{} probes; wrote {}",
         rows.len(),
