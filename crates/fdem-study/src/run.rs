@@ -7,8 +7,8 @@ use crate::cost::{peak_memory, reset_peak_memory};
 use crate::metrics::{PeakContacts, peak_contacts};
 use crate::{RunDef, StudyError};
 use fdem_triaxial::{
-    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestSummary, prepare, run_test,
-    specimen_time_step,
+    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestSummary, TriaxialError,
+    prepare, run_test, specimen_time_step,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -391,15 +391,22 @@ fn one_run(
     let (prepared, reused) = match PreparedSpecimen::cached(&specimen_path, &run.spec) {
         Cached::Reusable(s) => (*s, true),
         _ => {
-            let prepared = prepare(&run.spec, observer.preparation())?;
-            prepared.save(&specimen_path)?;
+            let prepared = match prepare(&run.spec, observer.preparation()) {
+                Ok(p) => p,
+                Err(e @ TriaxialError::Interrupted { .. }) => return Err(e.into()),
+                Err(e) => return failed(run, &record_path, format!("preparation: {e}")),
+            };
             if !prepared.report.checks.failures.is_empty() {
-                return Err(StudyError::Definition(format!(
-                    "{}: the prepared specimen failed its checks: {}",
-                    run.label(),
-                    prepared.report.checks.failures.join("; ")
-                )));
+                // Not saved: a later call prepares again (and fails the same way unless
+                // the definition changed).
+                let why = prepared.report.checks.failures.join("; ");
+                return failed(
+                    run,
+                    &record_path,
+                    format!("the prepared specimen failed its checks: {why}"),
+                );
             }
+            prepared.save(&specimen_path)?;
             (prepared, false)
         }
     };
@@ -409,12 +416,53 @@ fn one_run(
         dt: None,
         energy_jumps: None,
     };
-    let summary = run_test(&prepared, &options, observer.test(), interrupt)?;
+    let summary = match run_test(&prepared, &options, observer.test(), interrupt) {
+        Ok(summary) => summary,
+        Err(e @ TriaxialError::Interrupted { .. }) => return Err(e.into()),
+        // The test's summary.json in the run directory says where it stopped.
+        Err(e) => return failed(run, &record_path, format!("test: {e}")),
+    };
     let record = record_of(run, &dir, &prepared, reused, &summary)?;
     let text = serde_json::to_string_pretty(&record)
         .map_err(|e| StudyError::file(&record_path, e.to_string()))?;
     fdem_core::fs::write_atomically(&record_path, text)
         .map_err(|e| StudyError::io("writing", &record_path, e))?;
+    Ok(record)
+}
+
+/// Records a run that failed (preparation or test) with its reason, and returns it; the
+/// study goes on with the next run.
+fn failed(run: &RunDef, path: &Path, failure: String) -> Result<RunRecord, StudyError> {
+    let counts = run.spec.counts()?;
+    let record = RunRecord {
+        key: run.key()?,
+        label: run.label(),
+        series: run.series.clone(),
+        test: run.test.clone(),
+        h: run.h(),
+        exact_scaling: run.exact_scaling(),
+        model: run.model().name().to_string(),
+        model_used: String::new(),
+        order: run.order().to_string(),
+        seed: run.seed,
+        status: "failed".into(),
+        failure: Some(failure),
+        particles: counts.particles,
+        elements: counts.elements,
+        surface_nodes: counts.surface_nodes,
+        membrane_nodes: 0,
+        preparation: PhaseRecord::default(),
+        preparation_reused: false,
+        consolidation: PhaseRecord::default(),
+        shear: PhaseRecord::default(),
+        peak_memory_bytes: peak_memory(),
+        threads: rayon::current_num_threads(),
+        planned_steps: planned_steps(run)?,
+        peak: None,
+    };
+    let text =
+        serde_json::to_string_pretty(&record).map_err(|e| StudyError::file(path, e.to_string()))?;
+    fdem_core::fs::write_atomically(path, text).map_err(|e| StudyError::io("writing", path, e))?;
     Ok(record)
 }
 
