@@ -368,10 +368,22 @@ fn findings(d: &mut String, results: &Results) {
             .iter()
             .filter(|g| g.series == series && g.model == model && g.exact_scaling)
             .collect();
-        if plain.len() < 2 {
+        let _ = writeln!(d, "### {series} series, {model} model\n");
+        if !plain.iter().any(|g| g.reference) {
+            let _ = writeln!(
+                d,
+                "The original (h = 1) of this series has not finished yet; the findings are \
+                 checked against it once it has.\n"
+            );
             continue;
         }
-        let _ = writeln!(d, "### {series} series, {model} model\n");
+        if plain.len() < 2 {
+            let _ = writeln!(
+                d,
+                "No coarse-grained member without exact scaling has finished yet.\n"
+            );
+            continue;
+        }
         let series_of = |f: fn(&crate::metrics::RunMetrics) -> f64| -> Vec<(f64, f64)> {
             plain
                 .iter()
