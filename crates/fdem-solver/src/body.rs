@@ -162,16 +162,24 @@ impl Body {
     }
 }
 
-/// Solves the 3x3 system `a x = b` by Cramer's rule; `None` if `a` is singular.
+/// Solves the 3x3 system `a x = b` by Cramer's rule; `None` if `a` is singular (or not
+/// finite). The system is first divided by its largest entry, so that the determinants
+/// (cubes of the entries) neither overflow nor underflow for a body of extreme mass or
+/// size: the solution is the same.
 fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
     let det = |m: [[f64; 3]; 3]| {
         m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
             - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     };
-    let d = det(a);
     let scale = a.iter().flatten().map(|x| x.abs()).fold(0.0, f64::max);
-    if d.abs() <= 1e-300 || d.abs() <= 1e-14 * scale.powi(3) {
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    let a = a.map(|row| row.map(|x| x / scale));
+    let b = b.map(|x| x / scale);
+    let d = det(a);
+    if d.is_nan() || d.abs() <= 1e-14 {
         return None;
     }
     let mut x = [0.0; 3];
@@ -216,5 +224,20 @@ mod tests {
         assert!((m.velocity[0] - 2.0).abs() < 1e-14);
         assert!((m.angular_velocity[2] - w).abs() < 1e-12);
         assert!(m.angular_velocity[0].abs() < 1e-12 && m.angular_velocity[1].abs() < 1e-12);
+        // The same ring of extreme masses or size: its inertia's determinant would over-
+        // or underflow; the angular velocity is the same.
+        for (mass, size) in [(1e290, 1.0), (1e-290, 1.0), (1.0, 1e-100), (1.0, 1e100)] {
+            let pos: Vec<[f64; 3]> = pos.iter().map(|x| x.map(|c| c * size)).collect();
+            let mut state = NodeState::new(pos.clone(), vec![mass; 6]);
+            for (v, x) in state.velocities.iter_mut().zip(&pos) {
+                *v = cross([0.0, 0.0, w], *x);
+            }
+            let m = body.motion(&state);
+            assert!(
+                (m.angular_velocity[2] - w).abs() < 1e-12,
+                "{mass:e} kg, {size:e} m: {:?}",
+                m.angular_velocity
+            );
+        }
     }
 }

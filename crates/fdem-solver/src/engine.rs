@@ -171,10 +171,45 @@ impl Simulation {
             friction_dissipated: 0.0,
             last_powers: Powers::default(),
         };
+        // Finite inputs can still give a state that is not (a rigid body's spin turned
+        // into node velocities overflows), and the first output is written from the
+        // initial state and forces before any step checks them.
+        let s = &sim.state;
+        let mut moving = s.positions.iter().zip(&s.velocities);
+        if let Some(node) = moving.position(|(x, v)| !x.iter().chain(v).all(|c| c.is_finite())) {
+            return Err(SolverError::InvalidScene(format!(
+                "the position or velocity of {} in the initial state is not finite: a centre, \
+                 velocity or angular velocity overflows; use values of realistic magnitudes",
+                sim.node_name(node)
+            )));
+        }
         sim.compute_forces()?;
         let e = sim.energy();
         sim.initial_energy = e.kinetic + e.strain + e.other_potential;
+        let forces = &sim.state.forces;
+        if let Some(node) = forces.iter().position(|f| !f.iter().all(|x| x.is_finite())) {
+            return Err(SolverError::InvalidScene(format!(
+                "the force on {} in the initial state is not finite: a stiffness, damping or \
+                 load overflows; use values of realistic magnitudes",
+                sim.node_name(node)
+            )));
+        }
+        if !sim.initial_energy.is_finite() {
+            return Err(SolverError::InvalidScene(format!(
+                "the energy of the initial state is not finite ({}): the velocities, masses or \
+                 stiffnesses overflow; use values of realistic magnitudes",
+                not_finite(&e)
+            )));
+        }
         Ok(sim)
+    }
+
+    /// `node N of body B` (or `node N` for a node of no body), for messages.
+    fn node_name(&self, node: usize) -> String {
+        match self.bodies.iter().position(|b| b.nodes.contains(&node)) {
+            Some(b) => format!("node {node} of body {b}"),
+            None => format!("node {node}"),
+        }
     }
 
     /// Node state (positions, reference, velocities, forces, masses).
@@ -542,7 +577,15 @@ impl Simulation {
         let e = self.energy();
         let scale = self.energy_scale(&e);
         let relative = self.relative_balance_error(&e);
-        if !relative.is_finite() || relative > self.guard.energy_tolerance {
+        if !relative.is_finite() {
+            // Its numbers would be NaN: say which energy overflowed instead.
+            return Err(self.unstable(
+                self.step,
+                self.time,
+                format!("the energy balance is not finite ({})", not_finite(&e)),
+            ));
+        }
+        if relative > self.guard.energy_tolerance {
             return Err(self.unstable(
                 self.step,
                 self.time,
@@ -678,6 +721,29 @@ impl Simulation {
     }
 }
 
+/// The terms of `e` that are not finite, named (`kinetic energy, contact energy not
+/// finite`), or `their sum overflows` when each is finite: the words a message prints
+/// instead of the NaN the balance would show.
+fn not_finite(e: &EnergyReport) -> String {
+    let terms = [
+        ("kinetic energy", e.kinetic),
+        ("strain energy", e.strain),
+        ("contact energy", e.other_potential),
+        ("external work", e.external_work),
+        ("dissipated energy", e.dissipated),
+    ];
+    let names: Vec<&str> = terms
+        .iter()
+        .filter(|(_, v)| !v.is_finite())
+        .map(|(name, _)| *name)
+        .collect();
+    if names.is_empty() {
+        "their sum overflows".into()
+    } else {
+        format!("{} not finite", names.join(", "))
+    }
+}
+
 /// Adds `m g` to every node's force.
 /// Adds `m g` to the force of every node the node update moves (rigid bodies take their
 /// weight as a whole).
@@ -736,4 +802,27 @@ fn kick(s: &mut NodeState, half: f64) -> bool {
         // `reduce` (not `all`) so that every chunk is updated; `&&` is order-independent,
         // so the result does not depend on scheduling.
         .reduce(|| true, |a, b| a && b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The guard names the energies that are not finite instead of printing the NaN their
+    /// balance would be.
+    #[test]
+    fn energies_that_are_not_finite_are_named() {
+        let e = EnergyReport {
+            kinetic: f64::INFINITY,
+            other_potential: f64::NAN,
+            ..EnergyReport::default()
+        };
+        assert_eq!(not_finite(&e), "kinetic energy, contact energy not finite");
+        let sum = EnergyReport {
+            kinetic: f64::MAX,
+            strain: f64::MAX,
+            ..EnergyReport::default()
+        };
+        assert_eq!(not_finite(&sum), "their sum overflows");
+    }
 }

@@ -5,8 +5,10 @@ use std::path::PathBuf;
 /// Everything that can stop scene loading, set-up or a run.
 #[derive(Debug, thiserror::Error)]
 pub enum SolverError {
-    /// A scene file that does not parse or does not satisfy the schema.
-    #[error("{file}:{line}:{column}: {key}: {message}")]
+    /// A scene file that does not parse or does not satisfy the schema: printed as
+    /// `file:line:column: key: message`, or `file: key: message` for a rule across keys,
+    /// which has no line (as [`crate::toml_input::InputError`]).
+    #[error("{}", located(file, *line, *column, key, message))]
     Scene {
         /// The scene file (or `<string>` for scenes given as text).
         file: String,
@@ -77,6 +79,19 @@ pub enum SolverError {
     },
 }
 
+/// `file:line:column: key: message`, without the parts of the location that are unknown
+/// (0): a rule across keys prints as `file: key: message`, not `file:0:0: ...`.
+fn located(file: &str, line: usize, column: usize, key: &str, message: &str) -> String {
+    crate::toml_input::InputError {
+        file: file.to_string(),
+        line,
+        column,
+        key: key.to_string(),
+        message: message.to_string(),
+    }
+    .to_string()
+}
+
 impl SolverError {
     pub(crate) fn io(
         action: &'static str,
@@ -100,5 +115,31 @@ impl From<crate::toml_input::InputError> for SolverError {
             key: e.key,
             message: e.message,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// A rule across keys has no line: the scene's error prints without `:0:0`; a rule of
+    /// one key keeps its line and column.
+    #[test]
+    fn a_scene_error_prints_only_the_location_it_knows() {
+        let text = "[simulation]\nduration = 1e-6\noutput_interval = 1e-5\n\
+            [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n\
+            [[particle]]\ndiameter = 0.015\ncenter = [0.0, 0.0, 0.0]\n";
+        let across = crate::Scene::from_toml_str(text, "s.toml").unwrap_err();
+        assert!(
+            across
+                .to_string()
+                .starts_with("s.toml: simulation.output_interval: "),
+            "{across}"
+        );
+        let one = crate::Scene::from_toml_str(&text.replace("1e-6", "-1.0"), "s.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            one.starts_with("s.toml:2:12: simulation.duration: "),
+            "{one}"
+        );
     }
 }

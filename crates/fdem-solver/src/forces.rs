@@ -11,6 +11,7 @@
 //! once by power iteration.
 
 use crate::SolverError;
+use fdem_core::number::Number;
 use fdem_elastic::{AssembledStep, ElementSet};
 use rayon::prelude::*;
 use std::any::Any;
@@ -257,6 +258,21 @@ impl ElasticForces {
                 )
                 .map_err(error)?;
                 let step = set.assembled_time_step();
+                // Elements always have a finite stable step: an infinite or zero one is the
+                // arithmetic's (the element frequencies over- or underflow for a material
+                // of extreme stiffness or density), which would leave the step to the
+                // contact springs alone or to nothing.
+                if set.n_elements() > 0 && !(step.time_step.is_finite() && step.time_step > 0.0) {
+                    let m = &input.material;
+                    return Err(SolverError::InvalidScene(format!(
+                        "body {}: its elements have no finite stable time step: youngs_modulus \
+                         {} Pa over density {} kg/m^3 is beyond the range of the arithmetic at \
+                         this size; use values of realistic magnitudes",
+                        input.body,
+                        Number(m.youngs_modulus),
+                        Number(m.density)
+                    )));
+                }
                 Ok(BodyElements {
                     body: input.body,
                     nodes: input.nodes.clone(),

@@ -261,7 +261,10 @@ impl ModelBuilder {
             material.density * shape.volume,
             shape.inertia(material.density),
         )
-        .map_err(|e| SolverError::InvalidScene(format!("body {id}: {e}")))?;
+        .map_err(|e| match e {
+            SolverError::InvalidScene(m) => SolverError::InvalidScene(format!("body {id}: {m}")),
+            other => other,
+        })?;
         let set = fdem_elastic::ElementSet::new(material, npe, &one.nodes, &one.elements)
             .map_err(|source| SolverError::Elastic { body: id, source })?;
         let lumped = set.lumped_masses(one.n_nodes());

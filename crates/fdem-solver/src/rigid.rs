@@ -22,6 +22,7 @@
 //! `omega` does.
 
 use crate::SolverError;
+use fdem_core::number::Number;
 use nalgebra::{Matrix3, SymmetricEigen, Unit, UnitQuaternion, Vector3};
 
 /// Mass properties of a rigid body.
@@ -44,18 +45,38 @@ impl RigidInertia {
     /// [`SolverError::InvalidScene`] for a mass or a principal moment that is not finite
     /// and > 0.
     pub fn new(mass: f64, inertia: [[f64; 3]; 3]) -> Result<RigidInertia, SolverError> {
+        let refused = |what: String| {
+            SolverError::InvalidScene(format!(
+                "a rigid body needs a finite positive mass and principal moments; {what}"
+            ))
+        };
+        if !mass.is_finite() {
+            return Err(refused("got a mass that is not finite".into()));
+        }
+        if mass <= 0.0 {
+            return Err(refused(format!("got mass {} kg", Number(mass))));
+        }
         let tensor = Matrix3::from_fn(|j, k| 0.5 * (inertia[j][k] + inertia[k][j]));
+        // A tensor that is not finite (an extreme size or density) has no moments: its
+        // eigen-decomposition would only print NaN.
+        if tensor.iter().any(|x| !x.is_finite()) {
+            return Err(refused(format!(
+                "got mass {} kg and an inertia tensor that is not finite",
+                Number(mass)
+            )));
+        }
         let eigen = SymmetricEigen::new(tensor);
         // Ascending moments, so that the splitting's order of axes is fixed.
         let mut order = [0, 1, 2];
         order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
         let principal = order.map(|k| eigen.eigenvalues[k]);
-        if !(mass.is_finite() && mass > 0.0)
-            || principal.iter().any(|&i| !(i.is_finite() && i > 0.0))
-        {
-            return Err(SolverError::InvalidScene(format!(
-                "a rigid body needs a finite positive mass and principal moments; got mass \
-                 {mass:e} kg and moments {principal:?} kg m^2"
+        if principal.iter().any(|&i| !(i.is_finite() && i > 0.0)) {
+            return Err(refused(format!(
+                "got mass {} kg and moments [{}, {}, {}] kg m^2",
+                Number(mass),
+                Number(principal[0]),
+                Number(principal[1]),
+                Number(principal[2])
             )));
         }
         let axes = canonical_axes(
@@ -245,13 +266,15 @@ impl RigidState {
         array(quaternion(self.orientation).transform_vector(&Vector3::from(self.body_momentum)))
     }
 
-    /// Kinetic energy `m |v|^2 / 2 + sum_k pi_k^2 / (2 I_k)` (J).
+    /// Kinetic energy `m |v|^2 / 2 + sum_k pi_k^2 / (2 I_k)` (J), the rotational part as
+    /// `pi_k (pi_k / I_k)`: the square of a momentum overflows for a body of extreme mass
+    /// long before its energy does.
     pub fn kinetic_energy(&self, inertia: &RigidInertia) -> f64 {
         let v = self.velocity;
         let pi = self.body_momentum;
         let i = inertia.principal;
         0.5 * inertia.mass * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-            + 0.5 * (pi[0] * pi[0] / i[0] + pi[1] * pi[1] / i[1] + pi[2] * pi[2] / i[2])
+            + 0.5 * (pi[0] * (pi[0] / i[0]) + pi[1] * (pi[1] / i[1]) + pi[2] * (pi[2] / i[2]))
     }
 
     /// World position of the point at `offset` from the centre of mass in the principal

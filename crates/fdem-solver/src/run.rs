@@ -74,7 +74,10 @@ pub struct RunSummary {
     pub dt: f64,
     /// `fixed` or `automatic`.
     pub dt_mode: String,
-    /// The smallest stable bound (s).
+    /// The smallest stable bound (s); left out of `summary.json` when nothing bounds the
+    /// step (infinite: a lone rigid particle with a fixed step, `dt_bound_source` says
+    /// so), which JSON cannot write as a number.
+    #[serde(skip_serializing_if = "is_unbounded")]
     pub dt_bound: f64,
     /// What sets the bound.
     pub dt_bound_source: String,
@@ -94,6 +97,11 @@ pub struct RunSummary {
     pub cpu_seconds: f64,
     /// Rayon worker threads.
     pub threads: usize,
+}
+
+/// Whether a bound is no bound (not finite).
+fn is_unbounded(bound: &f64) -> bool {
+    !bound.is_finite()
 }
 
 /// The files a run writes into its directory, cleared at its start.
@@ -360,5 +368,34 @@ impl Outputs {
         self.energy.finish()?;
         self.bodies.finish()?;
         self.walls.finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A lone rigid particle with a fixed step has no stable bound: its summary leaves the
+    /// bound out (JSON would write it as `null`) and says what sets it.
+    #[test]
+    fn an_unbounded_step_is_left_out_of_the_summary() {
+        let text = "[simulation]\nduration = 1e-5\ndt = 1e-6\n\
+            [material]\ndensity = 2650.0\nyoungs_modulus = 40.0e9\npoisson_ratio = 0.2\n\
+            [[particle]]\ndiameter = 0.015\ncenter = [0.0, 0.0, 0.0]\nmodel = \"rigid\"\n";
+        let scene = Scene::from_toml_str(text, "s.toml").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let options = RunOptions {
+            out_dir: dir.path().to_path_buf(),
+            vtk: false,
+            contacts: false,
+        };
+        let summary = run(&scene, &options, &mut Silent, &AtomicBool::new(false)).unwrap();
+        assert_eq!(summary.dt_bound, f64::INFINITY);
+        let json = std::fs::read_to_string(dir.path().join("summary.json")).unwrap();
+        assert!(
+            !json.contains("null") && !json.contains("\"dt_bound\""),
+            "{json}"
+        );
+        assert!(json.contains("\"dt_bound_source\": \"nothing"), "{json}");
     }
 }

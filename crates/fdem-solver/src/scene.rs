@@ -10,8 +10,8 @@ use crate::engine::{Guard, Simulation, TimeStep};
 use crate::memory::{ModelSize, ParticleSize};
 use crate::model::{BodyId, ContactSettings, InitialMotion, ModelBuilder};
 use crate::toml_input::{
-    Number, axes, check_fraction, check_poisson, check_positive, check_requirement, level, poisson,
-    positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
+    Number, axes, check_fraction, check_poisson, check_positive, check_requirement, direction_opt,
+    level, poisson, positive, positive_opt, unit_quaternion_opt, vector, vector_opt,
 };
 use crate::{
     DEFAULT_AUTO_THRESHOLD, DeflectionEstimate, DeflectionInputs, deflection_estimate,
@@ -230,7 +230,7 @@ pub struct WallSection {
     /// Plane: normal towards the particles (any length > 0).
     #[serde(
         default,
-        deserialize_with = "vector_opt",
+        deserialize_with = "direction_opt",
         skip_serializing_if = "Option::is_none"
     )]
     pub normal: Option<[f64; 3]>,
@@ -244,7 +244,7 @@ pub struct WallSection {
     /// Cylinder: axis direction (any length > 0).
     #[serde(
         default,
-        deserialize_with = "vector_opt",
+        deserialize_with = "direction_opt",
         skip_serializing_if = "Option::is_none"
     )]
     pub axis: Option<[f64; 3]>,
@@ -639,6 +639,27 @@ impl Scene {
                 }
             }
         }
+        for (i, p) in self.particles.iter().enumerate() {
+            // The meshed volume scales as d^3 a b c: beyond the range of f64 the element
+            // volumes, masses and stiffnesses over- or underflow.
+            let axes = p.mesh.map_or(sphere_axes(), |m| m.axes);
+            let volume =
+                std::f64::consts::FRAC_PI_6 * p.diameter.powi(3) * axes[0] * axes[1] * axes[2];
+            if !volume.is_normal() {
+                return Err(fail(
+                    format!("particle[{i}].diameter"),
+                    format!(
+                        "{} m with mesh.axes [{}, {}, {}] gives a volume of {} m^3, beyond the \
+                         range of the arithmetic; use a diameter of a realistic magnitude",
+                        Number(p.diameter),
+                        Number(axes[0]),
+                        Number(axes[1]),
+                        Number(axes[2]),
+                        Number(volume)
+                    ),
+                ));
+            }
+        }
         let s = &self.simulation;
         if let Some(interval) = s.output_interval
             && interval > s.duration
@@ -995,5 +1016,68 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Finite values whose products over- or underflow are refused before the run, each
+    /// with a message that names what overflows and prints no NaN: a zero or subnormal
+    /// wall normal and an extreme diameter while loading; a Young's modulus whose element
+    /// frequencies overflow, a rigid particle whose mass does, an initial energy, node
+    /// velocity or force that is not finite while building. A rigid particle of extreme
+    /// density, whose momentum squared would overflow, has a finite energy and builds.
+    #[test]
+    fn values_that_overflow_are_refused_before_the_run_without_a_nan() {
+        let two = "[[particle]]\ndiameter = 0.015\ncenter = [0.0152, 0.0, 0.0]\n";
+        let wall = "[[wall]]\ntype = \"plane\"\npoint = [0.0, 0.0, -0.0076]\n";
+        let loading = [
+            (
+                format!("{SCENE}{wall}normal = [0.0, -0.0, 0.0]\n"),
+                "wall[0].normal",
+            ),
+            (
+                format!("{SCENE}{wall}normal = [5e-324, 0.0, 0.0]\n"),
+                "wall[0].normal",
+            ),
+            (SCENE.replace("0.015", "1e300"), "particle[0].diameter"),
+            (SCENE.replace("0.015", "1e-300"), "particle[0].diameter"),
+        ];
+        for (text, key) in loading {
+            let e = Scene::from_toml_str(&text, "t").unwrap_err().to_string();
+            assert!(
+                e.contains(&format!(": {key}: ")) && !e.contains("NaN"),
+                "{e}"
+            );
+        }
+        let rigid = SCENE.replace("[contact]", "model = \"rigid\"\n[contact]");
+        let building = [
+            (
+                SCENE.replace("40.0e9", "1e308"),
+                "no finite stable time step",
+            ),
+            (
+                rigid.replace("0.015", "1e100").replace("2650.0", "1e12"),
+                "a mass that is not finite",
+            ),
+            (
+                SCENE.replace("[contact]", "velocity = [1e300, 0.0, 0.0]\n[contact]"),
+                "the energy of the initial state is not finite (kinetic energy not finite)",
+            ),
+            (
+                format!("{SCENE}{two}model = \"rigid\"\nangular_velocity = [1e308, 0.0, 0.0]\n")
+                    .replace("2650.0", "1e12"),
+                "the position or velocity of node 43 of body 1",
+            ),
+            (
+                format!("{SCENE}damping_ratio = 1.7e308\ndepth_limit = 1e117\n{two}"),
+                "the force on node",
+            ),
+        ];
+        for (text, needle) in building {
+            let scene = Scene::from_toml_str(&text, "t").unwrap();
+            let e = scene.build().err().expect(needle).to_string();
+            assert!(e.contains(needle) && !e.contains("NaN"), "{e}");
+        }
+        let heavy = format!("{rigid}{two}").replace("2650.0", "1e300");
+        let sim = Scene::from_toml_str(&heavy, "t").unwrap().build().unwrap();
+        assert!(sim.energy().kinetic.is_finite());
     }
 }

@@ -160,6 +160,21 @@ pub fn check_vector(v: [f64; 3]) -> Result<[f64; 3], String> {
     }
 }
 
+/// A direction (a wall's normal or axis): three finite numbers whose length is finite
+/// and greater than 0 as computed, so that it can be normalised (a zero vector has no
+/// direction; the length of one of subnormal or extreme components under- or overflows).
+pub fn check_direction(v: [f64; 3]) -> Result<[f64; 3], String> {
+    let length = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if v.iter().all(|x| x.is_finite()) && length.is_finite() && length > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "must be a direction: finite components of a length greater than 0 that does not \
+             overflow, got {v:?}"
+        ))
+    }
+}
+
 /// Ellipsoid axes: three finite numbers greater than 0.
 pub fn check_axes(v: [f64; 3]) -> Result<[f64; 3], String> {
     if v.iter().all(|x| x.is_finite() && *x > 0.0) {
@@ -266,6 +281,13 @@ pub fn vector_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D
     vector(d).map(Some)
 }
 
+/// `deserialize_with` for an optional direction ([`check_direction`]).
+pub fn direction_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+    check_direction(numbers(d)?)
+        .map(Some)
+        .map_err(D::Error::custom)
+}
+
 /// `deserialize_with` for ellipsoid axes (finite, > 0).
 pub fn axes<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
     check_axes(numbers(d)?).map_err(D::Error::custom)
@@ -303,6 +325,15 @@ mod tests {
                 .contains("0, 1, 2, 3 or 4, got -1")
         );
         assert!(check_vector([0.0, f64::NAN, 0.0]).is_err());
+        assert_eq!(check_direction([0.0, 0.0, 2.0]), Ok([0.0, 0.0, 2.0]));
+        for refused in [[0.0, -0.0, 0.0], [5e-324, 0.0, 0.0], [1e308, 1e308, 0.0]] {
+            assert!(
+                check_direction(refused)
+                    .unwrap_err()
+                    .starts_with("must be a direction"),
+                "{refused:?}"
+            );
+        }
         assert!(check_unit_quaternion([2.0, 0.0, 0.0, 0.0]).is_err());
         assert_eq!(
             check_unit_quaternion([1.0 + 1e-7, 0.0, 0.0, 0.0]),
