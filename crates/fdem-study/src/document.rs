@@ -33,6 +33,8 @@ fn pct(mean: f64, spread: f64, seeds: usize) -> String {
 pub struct Provenance<'a> {
     /// The command that regenerates it.
     pub command: &'a str,
+    /// The runs of the study that have not finished (labels).
+    pub pending: &'a [String],
 }
 
 /// The whole document.
@@ -65,6 +67,15 @@ pub fn results_markdown(
         wall / 3600.0,
         cpu / 3600.0
     );
+    if !provenance.pending.is_empty() {
+        let _ = writeln!(
+            d,
+            "**Not finished yet** ({} runs; the next call of the command runs them and \
+             reuses everything above): {}.\n",
+            provenance.pending.len(),
+            provenance.pending.join(", ")
+        );
+    }
     runs_table(&mut d, results);
     tests_table(&mut d, results);
     table5(&mut d, results);

@@ -99,6 +99,7 @@ fn the_quick_study_runs_end_to_end_and_resumes() {
         &report,
         &Provenance {
             command: "cargo xtask study --preset quick --model rigid",
+            pending: &[],
         },
     )
     .unwrap();

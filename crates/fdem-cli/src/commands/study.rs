@@ -237,7 +237,21 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
         bail!("no finished runs in {} to report", args.out.display());
     }
     let command = super::command_line(args.invoked_as.as_deref(), "fdem study");
-    let written = write_results(&results, &report_dir, &Provenance { command: &command })?;
+    let finished: Vec<String> = results
+        .entries
+        .iter()
+        .map(|e| e.record.label.clone())
+        .collect();
+    let pending: Vec<String> = expand(&series, &options, true)?
+        .iter()
+        .map(RunDef::label)
+        .filter(|l| !finished.contains(l))
+        .collect();
+    let provenance = Provenance {
+        command: &command,
+        pending: &pending,
+    };
+    let written = write_results(&results, &report_dir, &provenance)?;
     let (wall, cpu) = results.total_cost();
     println!(
         "{} finished runs ({} wall, {} CPU in all); wrote {}",
