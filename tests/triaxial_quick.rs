@@ -52,12 +52,7 @@ fn quick_triaxial_test_runs_end_to_end() {
 
     // An interrupted run keeps complete rows and says so.
     let dir = tempfile::tempdir().unwrap();
-    let options = TestOptions {
-        out_dir: dir.path().join("interrupted"),
-        vtk: false,
-        dt: None,
-        energy_jumps: None,
-    };
+    let options = TestOptions::new(dir.path().join("interrupted"));
     let summary = run_test(&prepared, &options, &mut StopEarly(0), &never).unwrap();
     assert_eq!(summary.status, "interrupted");
     let s = json(&options.out_dir.join("summary.json"));
@@ -67,10 +62,8 @@ fn quick_triaxial_test_runs_end_to_end() {
 
     // The full run.
     let options = TestOptions {
-        out_dir: dir.path().join("quick"),
         vtk: true,
-        dt: None,
-        energy_jumps: None,
+        ..TestOptions::new(dir.path().join("quick"))
     };
     let summary =
         run_test(&prepared, &options, &mut fdem_triaxial::SilentTest, &never).expect("test runs");

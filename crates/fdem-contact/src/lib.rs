@@ -127,8 +127,8 @@ mod wall;
 pub use error::ContactError;
 pub use law::{LawInput, LawOutput, evaluate_law};
 pub use model::{
-    ContactModel, ContactReport, Counterpart, MARGIN_EDGE_FRACTION, NodeContact, PairSum,
-    StableStep, TUNNELLING_FRACTION,
+    ContactCheckpoint, ContactModel, ContactReport, Counterpart, MARGIN_EDGE_FRACTION, NodeContact,
+    PairSum, StableStep, TUNNELLING_FRACTION,
 };
 pub use narrow::{BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance};
 pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};

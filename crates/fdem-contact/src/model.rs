@@ -1132,6 +1132,117 @@ impl ContactModel {
     }
 }
 
+/// Everything a [`ContactModel`] carries from one evaluation to the next that a driver
+/// cannot rebuild from the model's definition: the tangential history, the walls as
+/// moved so far, the wall forces of the last evaluation (a servo reads them before the
+/// next step) and the count of evaluations (sheet contacts of the first evaluation may
+/// start at any depth). With the node state it resumes a run bit-for-bit
+/// ([`ContactModel::checkpoint`], [`ContactModel::restore_checkpoint`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ContactCheckpoint {
+    /// [`ContactModel::export_history`].
+    pub history: Vec<(usize, Counterpart, [f64; 3])>,
+    /// Per history entry, the non-elastic force and the relative velocity of the last
+    /// evaluation `[F_nc, v_rel]`: the next evaluation books the velocity-Verlet share of
+    /// that force's work from them (energy bookkeeping only, not the motion).
+    pub damping: Vec<[[f64; 3]; 2]>,
+    /// The walls, each anchored at time 0 with its current velocity.
+    pub walls: Vec<Wall>,
+    /// Force on each wall at the last evaluation (N).
+    pub wall_forces: Vec<[f64; 3]>,
+    /// Evaluations so far.
+    pub evaluations: u64,
+}
+
+impl ContactModel {
+    /// The state to resume this model from ([`ContactCheckpoint`]).
+    pub fn checkpoint(&self) -> ContactCheckpoint {
+        ContactCheckpoint {
+            history: self.export_history(),
+            damping: self
+                .contacts
+                .iter()
+                .map(|c| [c.damping_force, c.relative_velocity])
+                .collect(),
+            walls: self.walls.clone(),
+            wall_forces: self.wall_forces.clone(),
+            evaluations: self.evaluations,
+        }
+    }
+
+    /// Restores a [`ContactModel::checkpoint`] of a model built on the same surface and
+    /// walls: the history ([`ContactModel::import_history`]), the walls' motion, the wall
+    /// forces and the evaluation count; the broad phase is rebuilt at the next evaluation
+    /// (which does not change its results).
+    ///
+    /// # Errors
+    /// Nothing is changed when the wall count differs, a wall or wall force is not finite,
+    /// or the history does not import.
+    pub fn restore_checkpoint(
+        &mut self,
+        checkpoint: &ContactCheckpoint,
+    ) -> Result<(), ContactError> {
+        let n = self.walls.len();
+        if checkpoint.walls.len() != n || checkpoint.wall_forces.len() != n {
+            return Err(ContactError::InconsistentSurface {
+                what: format!(
+                    "the checkpoint has {} walls and {} wall forces, the model {n} walls",
+                    checkpoint.walls.len(),
+                    checkpoint.wall_forces.len()
+                ),
+                fix: "restore a checkpoint of a model built on the same assembly and walls",
+            });
+        }
+        for (i, (w, f)) in checkpoint
+            .walls
+            .iter()
+            .zip(&checkpoint.wall_forces)
+            .enumerate()
+        {
+            let finite = is_finite(w.velocity)
+                && is_finite(*f)
+                && match w.shape {
+                    WallShape::Plane { point, normal } => is_finite(point) && is_finite(normal),
+                    WallShape::Cylinder {
+                        axis_point,
+                        axis,
+                        radius,
+                    } => is_finite(axis_point) && is_finite(axis) && radius.is_finite(),
+                };
+            if !finite {
+                return Err(ContactError::InvalidWall {
+                    wall: i,
+                    reason: "the checkpoint's wall or wall force is not finite; restore an \
+                             undamaged checkpoint"
+                        .into(),
+                });
+            }
+        }
+        let damping_finite = checkpoint.damping.iter().flatten().all(|v| is_finite(*v));
+        if checkpoint.damping.len() != checkpoint.history.len() || !damping_finite {
+            return Err(ContactError::InconsistentSurface {
+                what: format!(
+                    "the checkpoint has {} damping records for {} history entries, or one \
+                     that is not finite",
+                    checkpoint.damping.len(),
+                    checkpoint.history.len()
+                ),
+                fix: "restore an undamaged checkpoint written by this build",
+            });
+        }
+        self.import_history(&checkpoint.history)?;
+        // The import sorted the entries by key, as the export listed them.
+        for (c, [force, velocity]) in self.contacts.iter_mut().zip(&checkpoint.damping) {
+            c.damping_force = *force;
+            c.relative_velocity = *velocity;
+        }
+        self.walls.clone_from(&checkpoint.walls);
+        self.wall_forces.clone_from(&checkpoint.wall_forces);
+        self.evaluations = checkpoint.evaluations;
+        Ok(())
+    }
+}
+
 /// Export and import of the tangential (friction) history, so that a simulation can be
 /// saved and resumed bit-for-bit (for example a prepared triaxial specimen).
 impl ContactModel {
@@ -1140,7 +1251,9 @@ impl ContactModel {
     /// d_s in m)`, sorted by surface node, then counterpart (bodies before walls).
     ///
     /// This is everything [`ContactModel::add_forces`] carries from one step to the next
-    /// besides the broad phase (which is rebuilt on demand and does not change results).
+    /// that changes the motion, besides the broad phase (which is rebuilt on demand and
+    /// does not change results); [`ContactModel::checkpoint`] adds what the energy
+    /// bookkeeping carries.
     pub fn export_history(&self) -> Vec<(usize, Counterpart, [f64; 3])> {
         self.contacts
             .iter()

@@ -18,6 +18,8 @@
 //!   that is short and in exponent form otherwise.
 //! - **Run identifiers** ([`run_id`]): the UTC start and the input's hash that name a
 //!   run in its `summary.json`.
+//! - **Sections files** ([`sections`]): named arrays of numbers and texts in one
+//!   checksummed binary file, read back bit for bit (run checkpoints).
 //! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
 //!   for the SVG figures.
 //!
@@ -57,4 +59,5 @@ pub mod hash;
 pub mod number;
 pub mod plot;
 pub mod run_id;
+pub mod sections;
 pub mod snapshot;

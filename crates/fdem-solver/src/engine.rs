@@ -1,6 +1,7 @@
 //! The explicit central-difference (velocity-Verlet) engine with energy bookkeeping and
 //! a stability guard.
 
+use crate::checkpoint::SimulationCheckpoint;
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
 use crate::rigid::{RigidBodies, RigidState};
@@ -249,6 +250,107 @@ impl Simulation {
             &mut self.state.positions,
             &mut self.state.velocities,
         )
+    }
+
+    /// The state this simulation carries to its next step ([`SimulationCheckpoint`]):
+    /// take it between steps, restore it with [`Simulation::restore_checkpoint`] into a
+    /// simulation built from the same model, and the run continues bit for bit.
+    pub fn checkpoint(&self) -> SimulationCheckpoint {
+        SimulationCheckpoint {
+            time: self.time,
+            step: self.step,
+            dt: self.dt,
+            positions: self.state.positions.clone(),
+            velocities: self.state.velocities.clone(),
+            forces: self.state.forces.clone(),
+            rigid: self.rigid.checkpoint(),
+            energy: [
+                self.initial_energy,
+                self.contribution_work,
+                self.gravity_work_origin,
+                self.damping_dissipated,
+                self.friction_dissipated,
+            ],
+            contact: self.contact.as_ref().map(|c| c.model().checkpoint()),
+            contributions: self
+                .parts
+                .contributions
+                .iter()
+                .map(|c| c.checkpoint())
+                .collect(),
+        }
+    }
+
+    /// Restores a [`Simulation::checkpoint`] of a simulation built from the same model.
+    /// What the driver sets between steps (a pressure, a wall's velocity) is the
+    /// driver's to restore.
+    ///
+    /// # Errors
+    /// A checkpoint of another model (node, rigid body, wall or contribution counts, or
+    /// another step) or one holding a value that is not finite; the simulation may then
+    /// be partly restored and is to be dropped.
+    pub fn restore_checkpoint(&mut self, c: &SimulationCheckpoint) -> Result<(), SolverError> {
+        use crate::checkpoint::mismatch;
+        let n = self.state.len();
+        if [c.positions.len(), c.velocities.len(), c.forces.len()] != [n; 3] {
+            return Err(mismatch(format!(
+                "{} nodes saved, {n} in the model",
+                c.positions.len()
+            )));
+        }
+        if c.dt.to_bits() != self.dt.to_bits() {
+            return Err(mismatch(format!(
+                "step {:e} s saved, {:e} s in the model",
+                c.dt, self.dt
+            )));
+        }
+        if c.contributions.len() != self.parts.contributions.len() {
+            return Err(mismatch(format!(
+                "{} contributions saved, {} in the model",
+                c.contributions.len(),
+                self.parts.contributions.len()
+            )));
+        }
+        let finite = [&c.positions, &c.velocities, &c.forces]
+            .into_iter()
+            .flatten()
+            .flatten()
+            .chain(&c.energy)
+            .chain([&c.time])
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(mismatch(
+                "a saved node state, time or energy is not finite".into(),
+            ));
+        }
+        self.state.positions.clone_from(&c.positions);
+        self.state.velocities.clone_from(&c.velocities);
+        self.state.forces.clone_from(&c.forces);
+        let s = &mut self.state;
+        self.rigid
+            .restore(&c.rigid, &mut s.positions, &mut s.velocities)?;
+        match (self.contact.as_mut(), &c.contact) {
+            (Some(contact), Some(saved)) => contact.model_mut().restore_checkpoint(saved)?,
+            (None, None) => {}
+            _ => {
+                return Err(mismatch(
+                    "contact in only one of model and checkpoint".into(),
+                ));
+            }
+        }
+        for (part, saved) in self.parts.contributions.iter_mut().zip(&c.contributions) {
+            part.restore_checkpoint(saved)?;
+        }
+        [
+            self.initial_energy,
+            self.contribution_work,
+            self.gravity_work_origin,
+            self.damping_dissipated,
+            self.friction_dissipated,
+        ] = c.energy;
+        self.time = c.time;
+        self.step = c.step;
+        Ok(())
     }
 
     /// Sets the clock (simulated time and step count), e.g. when a saved state is

@@ -136,6 +136,27 @@ pub trait ForceContribution: Any + Send {
     ) -> Result<Powers, SolverError>;
     /// Energy stored by this contribution (strain energy, springs) in J.
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64;
+    /// What this contribution carries from one evaluation to the next (beyond what the
+    /// driver sets between steps), as numbers, for a checkpoint
+    /// ([`crate::Simulation::checkpoint`]); none by default.
+    fn checkpoint(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    /// Restores [`ForceContribution::checkpoint`].
+    ///
+    /// # Errors
+    /// Numbers this contribution did not write (by default: any).
+    fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        if values.is_empty() {
+            Ok(())
+        } else {
+            Err(SolverError::InvalidScene(format!(
+                "{} keeps no state, but the checkpoint holds {} numbers for it",
+                self.name(),
+                values.len()
+            )))
+        }
+    }
 }
 
 /// A condition on nodes enforced after every force has been added: a node held on a
@@ -179,6 +200,32 @@ impl VerletWork {
         if self.previous.len() != n {
             self.previous = vec![([0.0; 3], [0.0; 3]); n];
         }
+    }
+
+    /// The remembered forces and velocities, six numbers per node, for a checkpoint.
+    pub fn to_numbers(&self) -> Vec<f64> {
+        self.previous
+            .iter()
+            .flat_map(|(f, v)| f.iter().chain(v).copied().collect::<Vec<_>>())
+            .collect()
+    }
+
+    /// Restores [`VerletWork::to_numbers`].
+    ///
+    /// # Errors
+    /// A count that is not a multiple of six.
+    pub fn restore_numbers(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        if !values.len().is_multiple_of(6) {
+            return Err(SolverError::InvalidScene(format!(
+                "{} numbers cannot be a Verlet work record (six per node)",
+                values.len()
+            )));
+        }
+        self.previous = values
+            .chunks_exact(6)
+            .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
+            .collect();
+        Ok(())
     }
 
     /// For node `k` (of the `n` given to [`VerletWork::ensure`]) with force `force` now and

@@ -17,6 +17,7 @@
 
 mod auto_model;
 mod body;
+mod checkpoint;
 mod contact;
 mod dimensions;
 mod engine;
@@ -37,6 +38,7 @@ pub use auto_model::{
     mean_contact_force, mean_node_area,
 };
 pub use body::{Body, BodyKind, BodyMotion, Connectivity};
+pub use checkpoint::{RigidCheckpoint, SimulationCheckpoint};
 pub use contact::ContactForces;
 pub use dimensions::{Applied, Field, Role};
 pub use engine::{EnergyReport, Guard, NodesMut, Simulation, TimeStep};

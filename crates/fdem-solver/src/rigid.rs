@@ -463,6 +463,46 @@ impl RigidBodies {
         Ok(())
     }
 
+    /// Each body's part of a checkpoint, in body order.
+    pub(crate) fn checkpoint(&self) -> Vec<crate::checkpoint::RigidCheckpoint> {
+        self.parts
+            .iter()
+            .map(|p| crate::checkpoint::RigidCheckpoint {
+                state: p.state,
+                reference: p.reference,
+                force: p.force,
+                torque: p.torque,
+            })
+            .collect()
+    }
+
+    /// Restores [`RigidBodies::checkpoint`] (as [`RigidBodies::set_states`], then the
+    /// reference, force and torque).
+    pub(crate) fn restore(
+        &mut self,
+        saved: &[crate::checkpoint::RigidCheckpoint],
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+    ) -> Result<(), SolverError> {
+        let states: Vec<RigidState> = saved.iter().map(|r| r.state).collect();
+        let finite = saved
+            .iter()
+            .flat_map(|r| r.reference.into_iter().chain(r.force).chain(r.torque))
+            .all(f64::is_finite);
+        if !finite {
+            return Err(SolverError::InvalidScene(
+                "a rigid body's saved reference, force or torque is not finite".into(),
+            ));
+        }
+        self.set_states(&states, x, v)?;
+        for (p, r) in self.parts.iter_mut().zip(saved) {
+            p.reference = r.reference;
+            p.force = r.force;
+            p.torque = r.torque;
+        }
+        Ok(())
+    }
+
     /// First half of a step: half kick with the last force and torque, drift over `dt`,
     /// nodes placed from the new pose.
     pub(crate) fn kick_drift(

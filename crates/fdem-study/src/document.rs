@@ -35,6 +35,8 @@ pub struct Provenance<'a> {
     pub command: &'a str,
     /// The runs of the study that have not finished (labels).
     pub pending: &'a [String],
+    /// Runs that failed, with the reason their record gives (`label`, `failure`).
+    pub failed: &'a [(String, String)],
 }
 
 /// The whole document.
@@ -75,6 +77,18 @@ pub fn results_markdown(
             provenance.pending.len(),
             provenance.pending.join(", ")
         );
+    }
+    if !provenance.failed.is_empty() {
+        let _ = writeln!(
+            d,
+            "**Failed** ({} runs; a failure of the same definition is not run again unless \
+             the command is given `--retry-failed`):\n",
+            provenance.failed.len()
+        );
+        for (label, failure) in provenance.failed {
+            let _ = writeln!(d, "- `{label}`: {failure}");
+        }
+        let _ = writeln!(d);
     }
     runs_table(&mut d, results);
     tests_table(&mut d, results);

@@ -40,7 +40,7 @@ pub mod stability;
 pub use document::{Provenance, results_markdown, write_results};
 pub use error::StudyError;
 pub use report::{Results, gather};
-pub use run::{RunRecord, SilentStudy, StudyObserver, StudyPlan, plan, run_study};
+pub use run::{RunRecord, SilentStudy, StudyObserver, StudyPlan, failed_record, plan, run_study};
 pub use series::{
     Member, OrderChoice, RunDef, Series, StudyOptions, StudyPreset, expand, load_series,
     quick_series,

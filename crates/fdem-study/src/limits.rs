@@ -194,7 +194,7 @@ pub fn run_limits(
     interrupt: &AtomicBool,
 ) -> Result<Vec<LimitPoint>, StudyError> {
     let runs = limit_runs()?;
-    run_study(&runs, dir, observer, interrupt)?;
+    run_study(&runs, dir, observer, interrupt, false)?;
     let mut points = Vec::new();
     for e in MODULI {
         let (ratio, auto) = auto_choice(e)?;

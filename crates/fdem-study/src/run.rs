@@ -18,6 +18,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub const RECORD_FILE: &str = "run.json";
 /// Name of a run's prepared specimen in its directory.
 pub const SPECIMEN_FILE: &str = "specimen.fdemspec";
+/// The key of the run whose test checkpoint a run directory holds (beside
+/// `fdem_triaxial::CHECKPOINT_FILE`): a checkpoint of another key is not resumed.
+const CHECKPOINT_KEY_FILE: &str = "checkpoint.key";
+/// Wall-clock seconds between two checkpoints of a running test: a run killed loses at
+/// most this much work.
+pub const CHECKPOINT_SECONDS: f64 = 300.0;
 
 /// Steps of a whole run (preparation, consolidation, shear) over the steps of its shear
 /// at the particles' own bound, for the cost estimate before the study has measured its
@@ -159,6 +165,21 @@ pub fn finished_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, St
     Ok((record.key == run.key()? && record.completed() && record.peak.is_some()).then_some(record))
 }
 
+/// Reads the record of `run` in `out` when it failed with the run's key: a failure of
+/// the same definition, which another call would repeat (a study runs it again only when
+/// asked to retry failed runs).
+pub fn failed_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
+    let path = run_dir(out, run).join(RECORD_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| StudyError::io("reading", &path, e))?;
+    let Ok(record) = serde_json::from_str::<RunRecord>(&text) else {
+        return Ok(None);
+    };
+    Ok((record.key == run.key()? && record.status == "failed").then_some(record))
+}
+
 /// One run of the plan.
 #[derive(Clone, Debug, Serialize)]
 pub struct PlannedRun {
@@ -172,7 +193,8 @@ pub struct PlannedRun {
     pub steps: u64,
     /// Estimated wall-clock seconds (0 for a reused run).
     pub seconds: f64,
-    /// `finished` (reused), `prepared` (its specimen is reused) or `new`.
+    /// `finished` (reused), `failed` (a failure of the same definition, not run again
+    /// unless failed runs are retried), `prepared` (its specimen is reused) or `new`.
     pub state: &'static str,
 }
 
@@ -257,14 +279,17 @@ pub fn planned_steps(run: &RunDef) -> Result<u64, StudyError> {
     Ok(run.spec.shear_steps(bound * run.spec.test.dt_safety()))
 }
 
-/// The plan of `runs` in `out`: what is reused, what is computed and what it will cost.
-pub fn plan(runs: &[RunDef], out: &Path) -> Result<StudyPlan, StudyError> {
+/// The plan of `runs` in `out`: what is reused, what is computed and what it will cost;
+/// runs that failed with the same definition are planned again only with `retry_failed`.
+pub fn plan(runs: &[RunDef], out: &Path, retry_failed: bool) -> Result<StudyPlan, StudyError> {
     let mut finished = Vec::new();
     let mut states = Vec::new();
     for run in runs {
         let record = finished_record(out, run)?;
         let state = if record.is_some() {
             "finished"
+        } else if !retry_failed && failed_record(out, run)?.is_some() {
+            "failed"
         } else if matches!(
             PreparedSpecimen::cached(&run_dir(out, run).join(SPECIMEN_FILE), &run.spec),
             Cached::Reusable(_)
@@ -285,7 +310,7 @@ pub fn plan(runs: &[RunDef], out: &Path) -> Result<StudyPlan, StudyError> {
         let steps = (ratio * planned_steps(run)? as f64) as u64;
         let units = counts.elements + counts.surface_nodes + membrane_nodes_estimate(run);
         let seconds = match state {
-            "finished" => 0.0,
+            "finished" | "failed" => 0.0,
             // The preparation is about a third of a run's steps (docs/STUDY.md).
             "prepared" => rate * units as f64 * steps as f64 * 2.0 / 3.0,
             _ => rate * units as f64 * steps as f64,
@@ -339,7 +364,8 @@ impl StudyObserver for SilentStudy {
     }
 }
 
-/// Runs every run of `runs` not yet finished in `out`, cheapest first by the plan's
+/// Runs every run of `runs` not yet finished in `out` (nor failed, unless `retry_failed`),
+/// cheapest first by the plan's
 /// estimate, and returns the records of all (reused ones included, in that order). A failed run is recorded and the study goes on; an
 /// interrupt stops it after writing what the interrupted test had ([`StudyError::Interrupted`]).
 pub fn run_study(
@@ -347,15 +373,21 @@ pub fn run_study(
     out: &Path,
     observer: &mut dyn StudyObserver,
     interrupt: &AtomicBool,
+    retry_failed: bool,
 ) -> Result<Vec<RunRecord>, StudyError> {
-    let plan = plan(runs, out)?;
+    let plan = plan(runs, out, retry_failed)?;
     observer.plan(&plan);
     // Cheapest first: an interrupted study has finished as many runs as it could.
     let mut order: Vec<usize> = (0..runs.len()).collect();
     order.sort_by(|&a, &b| plan.runs[a].seconds.total_cmp(&plan.runs[b].seconds));
     let mut records = Vec::new();
     for (i, (run, planned)) in order.iter().map(|&k| (&runs[k], &plan.runs[k])).enumerate() {
-        if let Some(record) = finished_record(out, run)? {
+        let reused = match finished_record(out, run)? {
+            Some(record) => Some(record),
+            None if !retry_failed => failed_record(out, run)?,
+            None => None,
+        };
+        if let Some(record) = reused {
             observer.run_ended(i, runs.len(), &record, true);
             records.push(record);
             continue;
@@ -386,6 +418,7 @@ fn one_run(
         std::fs::remove_file(&record_path)
             .map_err(|e| StudyError::io("removing", &record_path, e))?;
     }
+    forget_other_checkpoint(&dir, &run.key()?)?;
     reset_peak_memory();
     let specimen_path = dir.join(SPECIMEN_FILE);
     let (prepared, reused) = match PreparedSpecimen::cached(&specimen_path, &run.spec) {
@@ -407,14 +440,20 @@ fn one_run(
                 );
             }
             prepared.save(&specimen_path)?;
+            // A checkpoint of another preparation is not this run's.
+            let checkpoint = dir.join(fdem_triaxial::CHECKPOINT_FILE);
+            if checkpoint.exists() {
+                std::fs::remove_file(&checkpoint)
+                    .map_err(|e| StudyError::io("removing", &checkpoint, e))?;
+            }
             (prepared, false)
         }
     };
     let options = TestOptions {
-        out_dir: dir.clone(),
-        vtk: false,
-        dt: None,
-        energy_jumps: None,
+        checkpoint_interval: Some(CHECKPOINT_SECONDS),
+        // A checkpoint of another definition was cleared with the preparation above.
+        resume: true,
+        ..TestOptions::new(&dir)
     };
     let summary = match run_test(&prepared, &options, observer.test(), interrupt) {
         Ok(summary) => summary,
@@ -428,6 +467,20 @@ fn one_run(
     fdem_core::fs::write_atomically(&record_path, text)
         .map_err(|e| StudyError::io("writing", &record_path, e))?;
     Ok(record)
+}
+
+/// Removes the test checkpoint in `dir` unless it belongs to the run of `key`, and marks
+/// the directory's checkpoints as that run's.
+fn forget_other_checkpoint(dir: &Path, key: &str) -> Result<(), StudyError> {
+    let marker = dir.join(CHECKPOINT_KEY_FILE);
+    let checkpoint = dir.join(fdem_triaxial::CHECKPOINT_FILE);
+    let owner = std::fs::read_to_string(&marker).unwrap_or_default();
+    if owner.trim() != key && checkpoint.exists() {
+        std::fs::remove_file(&checkpoint)
+            .map_err(|e| StudyError::io("removing", &checkpoint, e))?;
+    }
+    fdem_core::fs::write_atomically(&marker, format!("{key}\n"))
+        .map_err(|e| StudyError::io("writing", &marker, e))
 }
 
 /// Records a run that failed (preparation or test) with its reason, and returns it; the

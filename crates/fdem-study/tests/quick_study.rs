@@ -47,7 +47,7 @@ fn the_quick_study_runs_end_to_end_and_resumes() {
     let runs: Vec<RunDef> = expand(&series, &options, false).unwrap();
     assert_eq!(runs.len(), 5);
     let mut observer = Counting::default();
-    let records = run_study(&runs, &out, &mut observer, &AtomicBool::new(false)).unwrap();
+    let records = run_study(&runs, &out, &mut observer, &AtomicBool::new(false), false).unwrap();
     assert_eq!((observer.computed, observer.reused), (5, 0));
     for r in &records {
         assert!(r.completed(), "{}: {} {:?}", r.label, r.status, r.failure);
@@ -100,6 +100,7 @@ fn the_quick_study_runs_end_to_end_and_resumes() {
         &Provenance {
             command: "cargo xtask study --preset quick --model rigid",
             pending: &[],
+            failed: &[],
         },
     )
     .unwrap();
@@ -126,7 +127,7 @@ fn the_quick_study_runs_end_to_end_and_resumes() {
     // A second call has nothing to compute.
     let mut again = Counting::default();
     let start = std::time::Instant::now();
-    run_study(&runs, &out, &mut again, &AtomicBool::new(false)).unwrap();
+    run_study(&runs, &out, &mut again, &AtomicBool::new(false), false).unwrap();
     assert_eq!((again.computed, again.reused), (0, 5));
     assert!(start.elapsed().as_secs_f64() < 30.0);
 }

@@ -171,6 +171,14 @@ impl ForceContribution for MembraneDamping {
     fn potential_energy(&self, _nodes: NodeView<'_>) -> f64 {
         0.0
     }
+
+    fn checkpoint(&self) -> Vec<f64> {
+        self.work.to_numbers()
+    }
+
+    fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        self.work.restore_numbers(values)
+    }
 }
 
 /// The membrane's forces (elastic sheet and follower pressure) with the pressure the test
@@ -254,6 +262,14 @@ impl ForceContribution for PressurisedMembrane {
 
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64 {
         self.inner.potential_energy(nodes)
+    }
+
+    fn checkpoint(&self) -> Vec<f64> {
+        self.work.to_numbers()
+    }
+
+    fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        self.work.restore_numbers(values)
     }
 }
 

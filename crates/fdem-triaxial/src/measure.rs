@@ -215,6 +215,60 @@ pub struct CurvePoint {
 }
 
 impl CurvePoint {
+    /// Numbers of [`CurvePoint::to_numbers`].
+    pub const NUMBERS: usize = 19;
+
+    /// The row as numbers, in the column order of `curve.csv` (counts as exact floats),
+    /// for a checkpoint.
+    pub fn to_numbers(&self) -> [f64; CurvePoint::NUMBERS] {
+        [
+            self.time,
+            self.eps_a,
+            self.eps_v,
+            self.sigma_a,
+            self.eta,
+            self.height,
+            self.volume,
+            self.axial_force,
+            self.p,
+            self.q,
+            self.kinetic_energy,
+            self.unbalanced_force,
+            self.energy_error,
+            self.max_depth,
+            self.contacts as f64,
+            self.step as f64,
+            self.sigma_r,
+            self.eta_measured,
+            self.hoop_strain,
+        ]
+    }
+
+    /// The row of [`CurvePoint::to_numbers`] (`n` holds at least [`CurvePoint::NUMBERS`]).
+    pub fn from_numbers(n: &[f64]) -> CurvePoint {
+        CurvePoint {
+            time: n[0],
+            eps_a: n[1],
+            eps_v: n[2],
+            sigma_a: n[3],
+            eta: n[4],
+            height: n[5],
+            volume: n[6],
+            axial_force: n[7],
+            p: n[8],
+            q: n[9],
+            kinetic_energy: n[10],
+            unbalanced_force: n[11],
+            energy_error: n[12],
+            max_depth: n[13],
+            contacts: n[14] as u64,
+            step: n[15] as u64,
+            sigma_r: n[16],
+            eta_measured: n[17],
+            hoop_strain: n[18],
+        }
+    }
+
     /// Applies eqs 12-15 to a measurement relative to the start of shear.
     pub fn from_measurement(m: &Measurement, reference: &Reference) -> CurvePoint {
         let sigma_a = axial_stress(m.axial_force, m.volume, m.height);
@@ -305,6 +359,17 @@ impl CurveWriter {
         file.write_all(format!("{CURVE_HEADER}\n").as_bytes())?;
         file.flush()?;
         Ok(CurveWriter { file })
+    }
+
+    /// Creates the file at `path` with the header and `rows` (a resumed run's rows so
+    /// far, replacing any written after its checkpoint).
+    pub fn with_rows(path: impl AsRef<Path>, rows: &[CurvePoint]) -> io::Result<CurveWriter> {
+        let mut writer = CurveWriter::new(path)?;
+        for row in rows {
+            writer.file.write_all(row.csv_line().as_bytes())?;
+        }
+        writer.file.flush()?;
+        Ok(writer)
     }
 
     /// Appends one row and flushes it.

@@ -4,6 +4,7 @@
 //! `summary.json`, `contacts_peak.csv`, `pairs_peak.csv`, `eta.svg`, `eps_v.svg` and,
 //! on request, ParaView frames.
 
+use crate::checkpoint::{CHECKPOINT_FILE, Stage, TestCheckpoint};
 use crate::jumps::{JumpTally, JumpTotal};
 use crate::loading::{TEST_WALL_MEMBRANE, TestModel};
 use crate::measure::{
@@ -41,6 +42,35 @@ pub struct TestOptions {
     /// `energy_jumps.csv`, with totals per phase and cause in the summary
     /// (docs/TRIAXIAL.md, "Energy balance"); `None` (the default) logs nothing.
     pub energy_jumps: Option<f64>,
+    /// Write a checkpoint ([`CHECKPOINT_FILE`] in `out_dir`) every this many wall-clock
+    /// seconds and when interrupted, so that [`TestOptions::resume`] continues the test
+    /// bit for bit; `None` writes none. Ignored with `vtk` or `energy_jumps`, whose
+    /// outputs a resumed run does not continue.
+    pub checkpoint_interval: Option<f64>,
+    /// Continue from the checkpoint in `out_dir` when there is one (of this definition;
+    /// one of another is an error); without one the test starts from its beginning.
+    pub resume: bool,
+}
+
+impl TestOptions {
+    /// Test into `out_dir` with the defaults: no frames, the preparation's step, no
+    /// jump log, no checkpoints, no resume.
+    pub fn new(out_dir: impl Into<PathBuf>) -> TestOptions {
+        TestOptions {
+            out_dir: out_dir.into(),
+            vtk: false,
+            dt: None,
+            energy_jumps: None,
+            checkpoint_interval: None,
+            resume: false,
+        }
+    }
+
+    /// The checkpoint interval (s) when checkpoints can be written.
+    fn checkpoints(&self) -> Option<f64> {
+        self.checkpoint_interval
+            .filter(|_| !self.vtk && self.energy_jumps.is_none())
+    }
 }
 
 /// The two stages of the test.
@@ -263,15 +293,70 @@ fn cpu_now() -> Option<cpu_time::ProcessTime> {
     cpu_time::ProcessTime::try_now().ok()
 }
 
-fn cost(steps: u64, time: f64, wall: Instant, cpu: Option<cpu_time::ProcessTime>) -> PhaseCost {
+/// A stage's cost: `steps` over simulated `time`, the seconds since `wall` and `cpu`
+/// plus the `prior` wall and CPU seconds of the stage before a resume.
+fn cost(
+    steps: u64,
+    time: f64,
+    (wall, cpu): (Instant, Option<cpu_time::ProcessTime>),
+    prior: [f64; 2],
+) -> PhaseCost {
     PhaseCost {
         steps,
         simulated_time: time,
-        wall_seconds: wall.elapsed().as_secs_f64(),
+        wall_seconds: prior[0] + wall.elapsed().as_secs_f64(),
         cpu_seconds: cpu
             .and_then(|c| c.try_elapsed().ok())
-            .map(|d| d.as_secs_f64()),
+            .map(|d| prior[1] + d.as_secs_f64()),
     }
+}
+
+/// The consolidation's result as numbers, for a checkpoint (the limits come from the
+/// definition).
+fn consolidation_numbers(r: &ConsolidationResult) -> Vec<f64> {
+    vec![
+        f64::from(u8::from(r.reached)),
+        r.stress_ratio,
+        r.unbalanced_force,
+        r.kinetic_ratio,
+        r.volume_rate,
+        r.max_overshoot,
+        r.lateral_stress_ratio,
+        r.energy_balance_error,
+        r.cost.steps as f64,
+        r.cost.simulated_time,
+        r.cost.wall_seconds,
+        r.cost.cpu_seconds.unwrap_or(f64::NAN),
+    ]
+}
+
+/// Restores [`consolidation_numbers`] into `r`.
+fn restore_consolidation(r: &mut ConsolidationResult, n: &[f64]) -> Result<(), String> {
+    let [
+        reached,
+        stress,
+        unbalanced,
+        kinetic,
+        volume,
+        overshoot,
+        lateral,
+        balance,
+        steps,
+        time,
+        wall,
+        cpu,
+    ] = <[f64; 12]>::try_from(n).map_err(|_| "section `test.consolidation` is not a result")?;
+    r.reached = reached != 0.0;
+    (r.stress_ratio, r.unbalanced_force, r.kinetic_ratio) = (stress, unbalanced, kinetic);
+    (r.volume_rate, r.max_overshoot) = (volume, overshoot);
+    (r.lateral_stress_ratio, r.energy_balance_error) = (lateral, balance);
+    r.cost = PhaseCost {
+        steps: steps as u64,
+        simulated_time: time,
+        wall_seconds: wall,
+        cpu_seconds: cpu.is_finite().then_some(cpu),
+    };
+    Ok(())
 }
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> TriaxialError + '_ {
@@ -299,6 +384,12 @@ struct Run<'a> {
     max_depth: f64,
     energy: EnergyWindows,
     jumps: Option<JumpTally>,
+    /// The definition as TOML (what a checkpoint belongs to).
+    definition: String,
+    /// When the last checkpoint was written (or the run started).
+    last_checkpoint: Instant,
+    /// Wall and CPU seconds the current stage took before this process (a resumed run).
+    prior_seconds: [f64; 2],
 }
 
 /// The energy balance of a phase, checked by the solver's guard over windows (between
@@ -315,6 +406,28 @@ struct EnergyWindows {
 }
 
 impl EnergyWindows {
+    /// The sums as numbers (initial, error, work, damping, friction), for a checkpoint.
+    fn numbers(&self) -> [f64; 5] {
+        [
+            self.initial,
+            self.error,
+            self.work,
+            self.damping,
+            self.friction,
+        ]
+    }
+
+    /// The windows of [`EnergyWindows::numbers`].
+    fn from_numbers([initial, error, work, damping, friction]: [f64; 5]) -> EnergyWindows {
+        EnergyWindows {
+            initial,
+            error,
+            work,
+            damping,
+            friction,
+        }
+    }
+
     /// Starts a phase: the guard's reference is the current state.
     fn start(sim: &mut Simulation) -> EnergyWindows {
         sim.reset_energy_reference();
@@ -363,6 +476,81 @@ impl EnergyWindows {
 }
 
 impl Run<'_> {
+    /// Writes a checkpoint of the test at `stage` with the stage's CSV `rows` so far,
+    /// when checkpoints are on and `now` or the interval since the last one has passed.
+    fn checkpoint(
+        &mut self,
+        summary: &TestSummary,
+        stage: Stage,
+        rows: &[CurvePoint],
+        peak: Option<&(String, String)>,
+        started: (Instant, Option<cpu_time::ProcessTime>),
+        now: bool,
+    ) -> Result<(), TriaxialError> {
+        let Some(interval) = self.options.checkpoints() else {
+            return Ok(());
+        };
+        if !now && self.last_checkpoint.elapsed().as_secs_f64() < interval {
+            return Ok(());
+        }
+        let spent = cost(0, 0.0, started, self.prior_seconds);
+        let checkpoint = TestCheckpoint {
+            definition: self.definition.clone(),
+            sim: self.model.sim.checkpoint(),
+            pressure: self.model.pressure(),
+            stage,
+            rows: rows.to_vec(),
+            outputs: [
+                self.escape_checks as f64,
+                self.discarded.0 as f64,
+                self.discarded.1 as f64,
+                self.max_depth,
+            ],
+            energy: self.energy.numbers(),
+            consolidation: consolidation_numbers(&summary.consolidation),
+            seconds: [spent.wall_seconds, spent.cpu_seconds.unwrap_or(0.0)],
+            peak: peak.map(|(n, p)| {
+                (
+                    n.clone(),
+                    p.clone(),
+                    summary.peak_snapshot_eps_a.unwrap_or(f64::NAN),
+                )
+            }),
+        };
+        checkpoint.write(&self.options.out_dir.join(CHECKPOINT_FILE))?;
+        self.last_checkpoint = Instant::now();
+        Ok(())
+    }
+
+    /// Restores the bookkeeping and the simulation of checkpoint `c` (its stage is
+    /// continued by the stage's loop).
+    fn restore(
+        &mut self,
+        c: &TestCheckpoint,
+        summary: &mut TestSummary,
+    ) -> Result<(), TriaxialError> {
+        let path = self.options.out_dir.join(CHECKPOINT_FILE);
+        let bad = |why: String| {
+            TriaxialError::file(
+                &path,
+                format!("{why}; delete it to run the test from its start"),
+            )
+        };
+        self.model
+            .sim
+            .restore_checkpoint(&c.sim)
+            .map_err(|e| bad(e.to_string()))?;
+        self.model.set_pressure(c.pressure);
+        let [checks, discarded, most, depth] = c.outputs;
+        self.escape_checks = checks as u64;
+        self.discarded = (discarded as u64, most as u64);
+        self.max_depth = depth;
+        self.energy = EnergyWindows::from_numbers(c.energy);
+        restore_consolidation(&mut summary.consolidation, &c.consolidation).map_err(bad)?;
+        self.prior_seconds = c.seconds;
+        Ok(())
+    }
+
     /// Moves the contact model's logged stored-energy jumps of the last step into the
     /// tally, while the log is on.
     fn log_jumps(&mut self, phase: &'static str) -> Result<(), TriaxialError> {
@@ -623,6 +811,7 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
 
 /// The files a test writes into its directory, cleared at its start.
 const TEST_OUTPUTS: &[&str] = &[
+    CHECKPOINT_FILE,
     "consolidation.csv",
     "curve.csv",
     "energy_jumps.csv",
@@ -655,17 +844,18 @@ pub fn run_test(
 ) -> Result<TestSummary, TriaxialError> {
     let spec = &prepared.spec;
     // The definition as TOML, every key written out: the same test gives the same hash.
-    let run_id = fdem_core::run_id::run_id(
-        spec.to_toml_string()?.as_bytes(),
-        std::time::SystemTime::now(),
-    );
+    let definition = spec.to_toml_string()?;
+    let run_id = fdem_core::run_id::run_id(definition.as_bytes(), std::time::SystemTime::now());
     let dir = &options.out_dir;
     std::fs::create_dir_all(dir).map_err(|e| TriaxialError::io("creating directory", dir, e))?;
+    let saved = saved_checkpoint(options, &definition)?;
     let model = TestModel::build(prepared, options.dt)?;
-    // The directory is this test's: an earlier test's outputs go (the prepared specimen
-    // kept there for reuse stays).
-    fdem_core::fs::clear_outputs(dir, TEST_OUTPUTS, TEST_SERIES)
-        .map_err(|e| TriaxialError::io("clearing the earlier outputs of", dir, e))?;
+    if saved.is_none() {
+        // The directory is this test's: an earlier test's outputs go (the prepared
+        // specimen kept there for reuse stays).
+        fdem_core::fs::clear_outputs(dir, TEST_OUTPUTS, TEST_SERIES)
+            .map_err(|e| TriaxialError::io("clearing the earlier outputs of", dir, e))?;
+    }
     let sigma_0 = spec.confining_pressure;
     let d_min = spec.smallest_simulated_size();
     let mut model = model;
@@ -702,19 +892,34 @@ pub fn run_test(
         max_depth: 0.0,
         energy: EnergyWindows::default(),
         jumps,
+        definition,
+        last_checkpoint: Instant::now(),
+        prior_seconds: [0.0; 2],
     };
     let mut summary = initial_summary(&run, run_id);
     check_plan(&summary.plan)?;
     observer.run_id(&summary.run_id);
     let mut points: Vec<CurvePoint> = Vec::new();
     let mut peak: Option<(String, String)> = None;
+    let resume = match saved {
+        Some(c) => {
+            run.restore(&c, &mut summary)?;
+            if let Stage::Shear { .. } = c.stage {
+                points.clone_from(&c.rows);
+                summary.peak_snapshot_eps_a = c.peak.as_ref().map(|p| p.2);
+                peak = c.peak.map(|(nodes, pairs, _)| (nodes, pairs));
+            }
+            Some((c.stage, c.rows))
+        }
+        None => None,
+    };
     let result = stages(
         &mut run,
         &mut summary,
-        &mut points,
-        &mut peak,
+        (&mut points, &mut peak),
         observer,
         interrupt,
+        resume,
     );
     // Whatever happened, finish the outputs so far.
     run.escape_checks = run.escape_checks.max(summary.escape_checks);
@@ -735,6 +940,13 @@ pub fn run_test(
         windows.close(&mut run.model.sim);
         windows.relative()
     };
+    if let Ok(true) = result {
+        // Finished: nothing to resume.
+        let path = dir.join(CHECKPOINT_FILE);
+        if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| TriaxialError::io("removing", &path, e))?;
+        }
+    }
     match &result {
         Ok(true) => summary.status = "completed".into(),
         Ok(false) => summary.status = "interrupted".into(),
@@ -747,20 +959,52 @@ pub fn run_test(
     result.map(|_| summary)
 }
 
-/// Consolidation then shear; `Ok(false)` when interrupted.
+/// The checkpoint to resume from: with [`TestOptions::resume`], the one in the output
+/// directory, which must be of `definition`; `None` when there is none.
+fn saved_checkpoint(
+    options: &TestOptions,
+    definition: &str,
+) -> Result<Option<TestCheckpoint>, TriaxialError> {
+    let path = options.out_dir.join(CHECKPOINT_FILE);
+    if !options.resume || !path.exists() {
+        return Ok(None);
+    }
+    let saved = TestCheckpoint::read(&path)?;
+    if saved.definition != definition {
+        return Err(TriaxialError::file(
+            &path,
+            "is a checkpoint of another specimen or test definition; resume with the \
+             definition that wrote it, or delete it to run this test from its start",
+        ));
+    }
+    Ok(Some(saved))
+}
+
+/// Consolidation then shear, or the rest of a resumed stage (`resume`: the stage and
+/// its CSV rows so far); `Ok(false)` when interrupted.
 fn stages(
     run: &mut Run<'_>,
     summary: &mut TestSummary,
-    points: &mut Vec<CurvePoint>,
-    peak: &mut Option<(String, String)>,
+    (points, peak): (&mut Vec<CurvePoint>, &mut Option<(String, String)>),
     observer: &mut dyn TestObserver,
     interrupt: &AtomicBool,
+    resume: Option<(Stage, Vec<CurvePoint>)>,
 ) -> Result<bool, TriaxialError> {
     let stop = |observer_ok: bool| !observer_ok || interrupt.load(Ordering::Relaxed);
-    if !consolidate(run, summary, observer, &stop)? {
-        return Ok(false);
-    }
-    shear(run, summary, points, peak, observer, &stop)
+    let shear_from = match resume {
+        Some((stage @ Stage::Shear { .. }, _)) => {
+            summary.outputs.push("consolidation.csv".into());
+            Some(stage)
+        }
+        consolidation => {
+            if !consolidate(run, summary, observer, &stop, consolidation)? {
+                return Ok(false);
+            }
+            run.prior_seconds = [0.0; 2];
+            None
+        }
+    };
+    shear(run, summary, (points, peak), observer, &stop, shear_from)
 }
 
 fn solver(phase: &'static str) -> impl Fn(fdem_solver::SolverError) -> TriaxialError {
@@ -796,53 +1040,59 @@ struct Equilibrium {
     last_volume: (f64, f64),
 }
 
+impl Equilibrium {
+    /// The checkpoint stage of a consolidation at `steps`.
+    fn stage(&self, steps: u64) -> Stage {
+        let r = &self.ramp;
+        Stage::Consolidation {
+            steps,
+            ramp: [r.t_start, r.ramp_time, r.start_pressure, r.sigma_0],
+            last_volume: [self.last_volume.0, self.last_volume.1],
+            reference: [self.reference.h0, self.reference.v0],
+        }
+    }
+}
+
 /// Step 1: the pressure ramps up while a proportional servo on the top platen holds the
 /// axial stress at the target; ends when every equilibrium criterion holds (`Ok(true)`),
-/// when interrupted (`Ok(false)`) or when the planned steps run out (an error).
+/// when interrupted (`Ok(false)`) or when the planned steps run out (an error). `resume`
+/// continues a checkpoint's consolidation (its stage and rows).
 fn consolidate(
     run: &mut Run<'_>,
     summary: &mut TestSummary,
     observer: &mut dyn TestObserver,
     stop: &dyn Fn(bool) -> bool,
+    resume: Option<(Stage, Vec<CurvePoint>)>,
 ) -> Result<bool, TriaxialError> {
-    let spec = &run.prepared.spec;
-    let test = spec.test.clone();
-    let velocity = spec.loading_velocity();
-    run.check_escape("consolidation")?;
-    run.frame()?;
-    let (wall, cpu) = (Instant::now(), cpu_now());
+    let test = run.prepared.spec.test.clone();
+    let v_max = test.servo_speed * run.prepared.spec.loading_velocity();
+    let started = (Instant::now(), cpu_now());
     let planned = summary.plan.consolidation_steps_max;
     observer.phase(TestPhase::Consolidation, planned);
     let log_path = run.options.out_dir.join("consolidation.csv");
-    let mut log = CurveWriter::new(&log_path).map_err(io(&log_path))?;
     summary.outputs.push("consolidation.csv".into());
-    let ramp = Ramp {
-        t_start: run.model.sim.time(),
-        ramp_time: test.ramp_time.unwrap_or(0.01 * spec.height / velocity),
-        start_pressure: run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0),
-        sigma_0: run.sigma_0,
+    let (mut watch, mut log, first_step) = match resume {
+        Some((
+            Stage::Consolidation {
+                steps,
+                ramp,
+                last_volume,
+                reference,
+            },
+            rows,
+        )) => {
+            let log = CurveWriter::with_rows(&log_path, &rows).map_err(io(&log_path))?;
+            let watch = equilibrium_watch(run, ramp, reference, last_volume);
+            (watch, ConsolidationLog { writer: log, rows }, steps)
+        }
+        _ => {
+            let (log, watch) = start_consolidation(run, &log_path)?;
+            (watch, log, 0)
+        }
     };
-    let mut watch = Equilibrium {
-        ramp,
-        reference: Reference {
-            h0: run.model.height(),
-            v0: run.model.volume(),
-            sigma_0: run.sigma_0,
-        },
-        strain_rate: velocity / spec.height,
-        last_volume: (run.model.sim.time(), run.model.volume()),
-    };
-    let v_max = test.servo_speed * velocity;
-    // Forces and the energy reference at the starting pressure.
-    run.model.set_pressure(ramp.at(ramp.t_start));
-    run.model
-        .sim
-        .rebase_energy()
-        .map_err(solver("consolidation"))?;
-    run.energy = EnergyWindows::start(&mut run.model.sim);
-    let mut steps = 0u64;
+    let mut steps = first_step;
     let outcome = loop {
-        let pressure = ramp.at(run.model.sim.time());
+        let pressure = watch.ramp.at(run.model.sim.time());
         run.model.set_pressure(pressure);
         let ratio = run.stress_ratio();
         let result = &mut summary.consolidation;
@@ -854,38 +1104,117 @@ fn consolidate(
         run.model.sim.advance().map_err(solver("consolidation"))?;
         run.log_jumps("consolidation")?;
         steps += 1;
-        if steps == CALIBRATION_STEPS {
-            calibrate(&mut summary.plan, wall, steps);
+        if steps == first_step + CALIBRATION_STEPS {
+            calibrate(&mut summary.plan, started.0, steps - first_step);
             observer.plan(&summary.plan);
         }
-        if steps.is_multiple_of(test.check_interval) || steps >= planned {
+        let check = steps.is_multiple_of(test.check_interval) || steps >= planned;
+        if !check && !steps.is_multiple_of(PROGRESS_STEPS) {
+            continue;
+        }
+        let ok = if check {
             let ok = check_equilibrium(
                 run, &mut watch, summary, &mut log, &log_path, observer, steps,
             )?;
             if summary.consolidation.reached {
                 break Ok(true);
             }
-            if stop(ok) {
-                break Ok(false);
-            }
-            if steps >= planned {
-                break Err(no_equilibrium(
-                    &summary.consolidation,
-                    &test,
-                    steps,
-                    run.model.sim.dt(),
-                ));
-            }
-        } else if steps.is_multiple_of(PROGRESS_STEPS) && stop(true) {
+            ok
+        } else {
+            true
+        };
+        let stopping = stop(ok);
+        let stage = watch.stage(steps);
+        run.checkpoint(summary, stage, &log.rows, None, started, stopping)?;
+        if stopping {
             break Ok(false);
         }
+        if steps >= planned {
+            break Err(no_equilibrium(
+                &summary.consolidation,
+                &test,
+                steps,
+                run.model.sim.dt(),
+            ));
+        }
     };
-    summary.consolidation.cost = cost(steps, steps as f64 * run.model.sim.dt(), wall, cpu);
+    summary.consolidation.cost = cost(
+        steps,
+        steps as f64 * run.model.sim.dt(),
+        started,
+        run.prior_seconds,
+    );
     if let Ok(true) = outcome {
         run.energy.close(&mut run.model.sim);
         summary.consolidation.energy_balance_error = run.energy.relative();
     }
     outcome
+}
+
+/// The consolidation log: `consolidation.csv` and its rows so far (for checkpoints).
+struct ConsolidationLog {
+    writer: CurveWriter,
+    rows: Vec<CurvePoint>,
+}
+
+/// The start of a consolidation: the first containment check and frame, the ramp from
+/// the preparation's lateral stress, the forces and the energy reference at the
+/// starting pressure, and the log.
+fn start_consolidation(
+    run: &mut Run<'_>,
+    log_path: &Path,
+) -> Result<(ConsolidationLog, Equilibrium), TriaxialError> {
+    let spec = &run.prepared.spec;
+    let velocity = spec.loading_velocity();
+    run.check_escape("consolidation")?;
+    run.frame()?;
+    let log = CurveWriter::new(log_path).map_err(io(log_path))?;
+    let ramp = [
+        run.model.sim.time(),
+        spec.test.ramp_time.unwrap_or(0.01 * spec.height / velocity),
+        run.prepared.report.cylinder_stress.clamp(0.0, run.sigma_0),
+        run.sigma_0,
+    ];
+    let (height, volume) = (run.model.height(), run.model.volume());
+    let watch = equilibrium_watch(run, ramp, [height, volume], [ramp[0], volume]);
+    run.model.set_pressure(watch.ramp.at(watch.ramp.t_start));
+    run.model
+        .sim
+        .rebase_energy()
+        .map_err(solver("consolidation"))?;
+    run.energy = EnergyWindows::start(&mut run.model.sim);
+    let log = ConsolidationLog {
+        writer: log,
+        rows: Vec::new(),
+    };
+    Ok((log, watch))
+}
+
+/// The consolidation's watch from its numbers (a checkpoint's or a fresh start's): the
+/// ramp (start, duration, start pressure, sigma_0), the height and volume at its start,
+/// the time and volume of the last check.
+fn equilibrium_watch(
+    run: &Run<'_>,
+    [t_start, ramp_time, start_pressure, sigma_0]: [f64; 4],
+    [h0, v0]: [f64; 2],
+    last_volume: [f64; 2],
+) -> Equilibrium {
+    let spec = &run.prepared.spec;
+    Equilibrium {
+        ramp: Ramp {
+            t_start,
+            ramp_time,
+            start_pressure,
+            sigma_0,
+        },
+        reference: Reference {
+            h0,
+            v0,
+            sigma_0: run.sigma_0,
+        },
+        strain_rate: spec.loading_velocity() / spec.height,
+        last_volume: (last_volume[0], last_volume[1]),
+    }
 }
 
 /// The plan's cost estimate from the first `steps` steps' wall time.
@@ -904,7 +1233,7 @@ fn check_equilibrium(
     run: &mut Run<'_>,
     watch: &mut Equilibrium,
     summary: &mut TestSummary,
-    log: &mut CurveWriter,
+    log: &mut ConsolidationLog,
     log_path: &Path,
     observer: &mut dyn TestObserver,
     steps: u64,
@@ -913,7 +1242,8 @@ fn check_equilibrium(
     run.energy.close(&mut run.model.sim);
     let m = run.measurement();
     let point = CurvePoint::from_measurement(&m, &watch.reference);
-    log.push(&point).map_err(io(log_path))?;
+    log.writer.push(&point).map_err(io(log_path))?;
+    log.rows.push(point);
     run.check_escape("consolidation")?;
     let e = run.model.sim.energy();
     let stored = e.strain + e.other_potential;
@@ -983,44 +1313,53 @@ struct ShearCurve {
 }
 
 /// Step 2: shear at constant velocity to the target strain, a curve row every
-/// `test.output_strain`; `Ok(false)` when interrupted.
+/// `test.output_strain`; `Ok(false)` when interrupted. `resume` continues a
+/// checkpoint's shear (`points` and `peak` then hold its rows and snapshot).
 fn shear(
     run: &mut Run<'_>,
     summary: &mut TestSummary,
-    points: &mut Vec<CurvePoint>,
-    peak: &mut Option<(String, String)>,
+    (points, peak): (&mut Vec<CurvePoint>, &mut Option<(String, String)>),
     observer: &mut dyn TestObserver,
     stop: &dyn Fn(bool) -> bool,
+    resume: Option<Stage>,
 ) -> Result<bool, TriaxialError> {
     let test = run.prepared.spec.test.clone();
-    run.model
-        .set_top_velocity(-run.prepared.spec.loading_velocity())?;
-    // The shear's balance starts afresh (docs/TRIAXIAL.md, "Energy balance").
-    run.energy = EnergyWindows::start(&mut run.model.sim);
-    let reference = Reference {
-        h0: run.model.height(),
-        v0: run.model.volume(),
-        sigma_0: run.sigma_0,
-    };
-    let (wall, cpu) = (Instant::now(), cpu_now());
+    let started = (Instant::now(), cpu_now());
     let planned = summary.plan.shear_steps;
-    observer.phase(TestPhase::Shear, planned);
     let path = run.options.out_dir.join("curve.csv");
-    let mut curve = ShearCurve {
-        writer: CurveWriter::new(&path).map_err(io(&path))?,
-        path,
-        reference,
-        tracker: PeakTracker::new(),
-        next_output: test.output_strain,
-    };
     summary.outputs.push("curve.csv".into());
-    let first = CurvePoint::from_measurement(&run.measurement(), &reference);
-    curve.writer.push(&first).map_err(io(&curve.path))?;
-    points.push(first);
-    curve.tracker.observe(first.eta);
-    *peak = run.snapshot();
-    summary.peak_snapshot_eps_a = Some(first.eps_a);
-    let (mut steps, t0) = (0u64, run.model.sim.time());
+    let (mut curve, first_step, t0) = match resume {
+        Some(Stage::Shear {
+            steps,
+            t0,
+            reference: [h0, v0],
+            next_output,
+        }) => {
+            let mut tracker = PeakTracker::new();
+            for p in points.iter() {
+                tracker.observe(p.eta);
+            }
+            let curve = ShearCurve {
+                writer: CurveWriter::with_rows(&path, points).map_err(io(&path))?,
+                path,
+                reference: Reference {
+                    h0,
+                    v0,
+                    sigma_0: run.sigma_0,
+                },
+                tracker,
+                next_output,
+            };
+            (curve, steps, t0)
+        }
+        _ => {
+            let curve = start_shear(run, summary, (points, peak), path)?;
+            (curve, 0, run.model.sim.time())
+        }
+    };
+    observer.phase(TestPhase::Shear, planned);
+    let mut steps = first_step;
+    let reference = curve.reference;
     // Errors leave the loop with the cost of the steps taken recorded.
     let outcome: Result<bool, TriaxialError> = loop {
         if let Err(e) = run.model.sim.advance() {
@@ -1055,17 +1394,61 @@ fn shear(
             if done {
                 break Ok(true);
             }
-            if stop(ok) {
+            let stopping = stop(ok);
+            let stage = Stage::Shear {
+                steps,
+                t0,
+                reference: [reference.h0, reference.v0],
+                next_output: curve.next_output,
+            };
+            if let Err(e) = run.checkpoint(summary, stage, points, peak.as_ref(), started, stopping)
+            {
+                break Err(e);
+            }
+            if stopping {
                 break Ok(false);
             }
         }
     };
-    summary.shear = cost(steps, run.model.sim.time() - t0, wall, cpu);
+    summary.shear = cost(steps, run.model.sim.time() - t0, started, run.prior_seconds);
     let completed = outcome?;
     if completed {
         run.frame()?;
     }
     Ok(completed)
+}
+
+/// The start of shear: the platen at the loading velocity, the balance afresh, the
+/// reference state, the first curve row and the peak snapshot there.
+fn start_shear(
+    run: &mut Run<'_>,
+    summary: &mut TestSummary,
+    (points, peak): (&mut Vec<CurvePoint>, &mut Option<(String, String)>),
+    path: PathBuf,
+) -> Result<ShearCurve, TriaxialError> {
+    run.model
+        .set_top_velocity(-run.prepared.spec.loading_velocity())?;
+    // The shear's balance starts afresh (docs/TRIAXIAL.md, "Energy balance").
+    run.energy = EnergyWindows::start(&mut run.model.sim);
+    let reference = Reference {
+        h0: run.model.height(),
+        v0: run.model.volume(),
+        sigma_0: run.sigma_0,
+    };
+    let mut curve = ShearCurve {
+        writer: CurveWriter::new(&path).map_err(io(&path))?,
+        path,
+        reference,
+        tracker: PeakTracker::new(),
+        next_output: run.prepared.spec.test.output_strain,
+    };
+    let first = CurvePoint::from_measurement(&run.measurement(), &reference);
+    curve.writer.push(&first).map_err(io(&curve.path))?;
+    points.push(first);
+    curve.tracker.observe(first.eta);
+    *peak = run.snapshot();
+    summary.peak_snapshot_eps_a = Some(first.eps_a);
+    Ok(curve)
 }
 
 /// One shear output: closes the energy window, writes the curve row, follows the peak

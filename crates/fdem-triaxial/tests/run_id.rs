@@ -51,12 +51,7 @@ impl TestObserver for FirstReport {
 /// Runs the test on `prepared` into `dir` until its first report; returns the identifier
 /// the observer saw and the summary's.
 fn named_run(prepared: &PreparedSpecimen, dir: &std::path::Path) -> (String, String) {
-    let options = TestOptions {
-        out_dir: dir.to_path_buf(),
-        vtk: false,
-        dt: None,
-        energy_jumps: None,
-    };
+    let options = TestOptions::new(dir);
     let mut observer = FirstReport::default();
     let summary = run_test(prepared, &options, &mut observer, &AtomicBool::new(false)).unwrap();
     assert_eq!(summary.status, "interrupted");

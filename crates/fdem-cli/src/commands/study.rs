@@ -56,6 +56,10 @@ pub struct StudyArgs {
     /// Run nothing: write the results of the runs finished so far.
     #[arg(long)]
     report_only: bool,
+    /// Run again the runs that failed with the same definition (by default a failure is
+    /// reported, not repeated).
+    #[arg(long)]
+    retry_failed: bool,
     /// How the command is named in RESULTS.md (set by `cargo xtask study`).
     #[arg(long, hide = true, value_name = "TEXT")]
     invoked_as: Option<String>,
@@ -206,14 +210,20 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
     super::check_output_dir(&report_dir)?;
     let runs = expand(&series, &options, false)?;
     if args.plan {
-        print_plan(&fdem_study::plan(&runs, &args.out)?);
+        print_plan(&fdem_study::plan(&runs, &args.out, args.retry_failed)?);
         return Ok(());
     }
     let mut outcome = Ok(());
     if !args.report_only {
         let interrupt: Arc<AtomicBool> = super::interrupt_flag();
         let mut progress = StudyProgress::new(&interrupt);
-        match run_study(&runs, &args.out, &mut progress, &interrupt) {
+        match run_study(
+            &runs,
+            &args.out,
+            &mut progress,
+            &interrupt,
+            args.retry_failed,
+        ) {
             Ok(records) => {
                 let failed: Vec<&str> = records
                     .iter()
@@ -242,14 +252,21 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
         .iter()
         .map(|e| e.record.label.clone())
         .collect();
-    let pending: Vec<String> = expand(&series, &options, true)?
-        .iter()
-        .map(RunDef::label)
-        .filter(|l| !finished.contains(l))
-        .collect();
+    let mut pending = Vec::new();
+    let mut failed = Vec::new();
+    for run in expand(&series, &options, true)? {
+        if finished.contains(&run.label()) {
+            continue;
+        }
+        match fdem_study::failed_record(&args.out, &run)? {
+            Some(record) => failed.push((run.label(), record.failure.unwrap_or_default())),
+            None => pending.push(run.label()),
+        }
+    }
     let provenance = Provenance {
         command: &command,
         pending: &pending,
+        failed: &failed,
     };
     let written = write_results(&results, &report_dir, &provenance)?;
     let (wall, cpu) = results.total_cost();

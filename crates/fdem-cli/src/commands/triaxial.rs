@@ -63,6 +63,14 @@ pub struct TriaxialArgs {
     /// step, with its cause, to energy_jumps.csv (totals in summary.json)
     #[arg(long, value_name = "J")]
     energy_jumps: Option<f64>,
+    /// Write a checkpoint to DIR/checkpoint.fdemckpt every this many seconds of wall
+    /// time and when interrupted (0: none; not with --vtk or --energy-jumps).
+    #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
+    checkpoint_interval: f64,
+    /// Continue the test from DIR/checkpoint.fdemckpt (written by an interrupted run of
+    /// the same definition), bit for bit as if it had not stopped.
+    #[arg(long)]
+    resume: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
@@ -297,6 +305,26 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
             fdem_core::number::Number(j)
         );
     }
+    if !(args.checkpoint_interval.is_finite() && args.checkpoint_interval >= 0.0) {
+        bail!(
+            "--checkpoint-interval must be a finite number of seconds >= 0, got {}",
+            fdem_core::number::Number(args.checkpoint_interval)
+        );
+    }
+    if args.resume {
+        let path = args.out.join(fdem_triaxial::CHECKPOINT_FILE);
+        if !path.is_file() {
+            bail!(
+                "--resume: there is no checkpoint {}; run without --resume to start the test",
+                path.display()
+            );
+        }
+        if args.vtk || args.energy_jumps.is_some() || args.fresh {
+            bail!(
+                "--resume continues a test as it was run: drop --vtk, --energy-jumps and --fresh"
+            );
+        }
+    }
     super::check_output_dir(&args.out)?;
     let interrupt = super::interrupt_flag();
     let start = Instant::now();
@@ -307,6 +335,8 @@ pub fn run(args: &TriaxialArgs) -> anyhow::Result<()> {
         vtk: args.vtk,
         dt: None,
         energy_jumps: args.energy_jumps,
+        checkpoint_interval: (args.checkpoint_interval > 0.0).then_some(args.checkpoint_interval),
+        resume: args.resume,
     };
     let result = run_test(&prepared, &options, &mut progress, &interrupt);
     progress.finish();
