@@ -487,7 +487,7 @@ fn forget_other_checkpoint(dir: &Path, key: &str) -> Result<(), StudyError> {
 /// study goes on with the next run.
 fn failed(run: &RunDef, path: &Path, failure: String) -> Result<RunRecord, StudyError> {
     let counts = run.spec.counts()?;
-    let record = RunRecord {
+    let mut record = RunRecord {
         key: run.key()?,
         label: run.label(),
         series: run.series.clone(),
@@ -513,10 +513,53 @@ fn failed(run: &RunDef, path: &Path, failure: String) -> Result<RunRecord, Study
         planned_steps: planned_steps(run)?,
         peak: None,
     };
+    if let Some(dir) = path.parent() {
+        add_failed_test_costs(&mut record, &dir.join("summary.json"));
+    }
     let text =
         serde_json::to_string_pretty(&record).map_err(|e| StudyError::file(path, e.to_string()))?;
     fdem_core::fs::write_atomically(path, text).map_err(|e| StudyError::io("writing", path, e))?;
     Ok(record)
+}
+
+/// Fills the phase costs, the model used and the membrane nodes of a failed run's
+/// `record` from the test's `summary.json` (a test that failed writes it; a preparation
+/// that failed leaves none, and the record keeps zeros).
+fn add_failed_test_costs(record: &mut RunRecord, summary: &Path) {
+    let Ok(text) = std::fs::read_to_string(summary) else {
+        return;
+    };
+    let Ok(s) = serde_json::from_str::<serde_json::Value>(&text) else {
+        return;
+    };
+    let phase = |c: &serde_json::Value| PhaseRecord {
+        steps: c["steps"].as_u64().unwrap_or(0),
+        wall_seconds: c["wall_seconds"].as_f64().unwrap_or(0.0),
+        cpu_seconds: c["cpu_seconds"].as_f64().unwrap_or(f64::NAN),
+    };
+    record.consolidation = phase(&s["consolidation"]["cost"]);
+    record.shear = phase(&s["shear"]);
+    record.membrane_nodes = s["plan"]["membrane_nodes"].as_u64().unwrap_or(0);
+    let classes = s["classes"].as_array().cloned().unwrap_or_default();
+    let count = |rigid: bool| -> u64 {
+        classes
+            .iter()
+            .filter(|c| (c["model"].as_str() == Some("rigid")) == rigid)
+            .filter_map(|c| c["particles"].as_u64())
+            .sum()
+    };
+    if !classes.is_empty() {
+        record.model_used = model_used(count(true), count(true) + count(false));
+    }
+}
+
+/// The model a run used, from its rigid and total particle counts.
+fn model_used(rigid: u64, particles: u64) -> String {
+    match (rigid, particles) {
+        (0, _) => "deformable".to_string(),
+        (r, n) if r == n => "rigid".to_string(),
+        (r, n) => format!("mixed ({r} of {n} rigid)"),
+    }
 }
 
 fn record_of(
@@ -533,11 +576,7 @@ fn record_of(
         wall_seconds: c.wall_seconds,
         cpu_seconds: c.cpu_seconds.unwrap_or(f64::NAN),
     };
-    let model_used = match (counts.rigid_particles, counts.particles) {
-        (0, _) => "deformable".to_string(),
-        (r, n) if r == n => "rigid".to_string(),
-        (r, n) => format!("mixed ({r} of {n} rigid)"),
-    };
+    let model_used = model_used(counts.rigid_particles, counts.particles);
     Ok(RunRecord {
         key: run.key()?,
         label: run.label(),

@@ -188,3 +188,33 @@ impl TestCheckpoint {
         parse().map_err(bad)
     }
 }
+
+impl crate::TestModel {
+    /// The test model of `prepared` in the state of the checkpoint at `path` (written by
+    /// a test of the same definition): for diagnostics that step it by hand
+    /// (`sim.advance()`) from shortly before an event. The platens keep the motion they
+    /// had; a consolidation's servo is not driven.
+    ///
+    /// # Errors
+    /// A checkpoint that does not read, belongs to another definition or does not fit
+    /// the model.
+    pub fn at_checkpoint(
+        prepared: &crate::PreparedSpecimen,
+        path: &Path,
+    ) -> Result<crate::TestModel, TriaxialError> {
+        let c = TestCheckpoint::read(path)?;
+        if c.definition != prepared.spec.to_toml_string()? {
+            return Err(TriaxialError::file(
+                path,
+                "is a checkpoint of another specimen or test definition",
+            ));
+        }
+        let mut model = crate::TestModel::build(prepared, None)?;
+        model
+            .sim
+            .restore_checkpoint(&c.sim)
+            .map_err(|e| TriaxialError::file(path, e.to_string()))?;
+        model.set_pressure(c.pressure);
+        Ok(model)
+    }
+}
