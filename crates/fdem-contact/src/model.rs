@@ -75,12 +75,23 @@ pub enum Counterpart {
 }
 
 impl Counterpart {
-    /// Packed code used in history keys: bodies below 2^32, walls at 2^32 + index.
+    /// Packed code, used in history keys and saved histories: bodies below 2^32, walls
+    /// at 2^32 + index.
     #[inline]
-    fn code(self) -> u64 {
+    pub fn code(self) -> u64 {
         match self {
             Counterpart::Body(b) => b as u64,
             Counterpart::Wall(w) => (1u64 << 32) | w as u64,
+        }
+    }
+
+    /// The counterpart of [`Counterpart::code`]; `None` for a number no counterpart has.
+    pub fn from_code(code: u64) -> Option<Counterpart> {
+        let index = u32::try_from(code & 0xffff_ffff).ok()?;
+        match code >> 32 {
+            0 => Some(Counterpart::Body(index)),
+            1 => Some(Counterpart::Wall(index)),
+            _ => None,
         }
     }
 }
@@ -1138,7 +1149,7 @@ impl ContactModel {
 /// next step) and the count of evaluations (sheet contacts of the first evaluation may
 /// start at any depth). With the node state it resumes a run bit-for-bit
 /// ([`ContactModel::checkpoint`], [`ContactModel::restore_checkpoint`]).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ContactCheckpoint {
     /// [`ContactModel::export_history`].
     pub history: Vec<(usize, Counterpart, [f64; 3])>,

@@ -10,7 +10,7 @@
 //! their order is free, extra columns are ignored and blank space around fields is
 //! trimmed. Malformed input is refused with a [`CsvError`] naming file, line and column.
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::io::Read;
@@ -22,7 +22,7 @@ pub const NODES_HEADER: &str =
 pub const PAIRS_HEADER: &str = "time,body,other_body,other_wall,fnx,fny,fnz,ftx,fty,ftz,nodes";
 
 /// What a node (or a pair's body) touches: the `other_body` and `other_wall` columns.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Counterpart {
     /// A face (or the nodes) of this body.

@@ -23,8 +23,6 @@ const RIGID_NUMBERS: usize = 22;
 const HISTORY_NUMBERS: usize = 5;
 /// Numbers per wall: kind, two points or vectors (6), radius, velocity (3).
 const WALL_NUMBERS: usize = 11;
-/// Counterpart code of walls: `WALL_CODE + index` (bodies are their id).
-const WALL_CODE: f64 = 4_294_967_296.0;
 
 /// A rigid body's part of a checkpoint.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,12 +105,9 @@ impl SimulationCheckpoint {
         out.put_numbers(&name("rigid"), rigid.collect());
         out.put_numbers(&name("energy"), self.energy.to_vec());
         if let Some(c) = &self.contact {
+            // Node ids and counterpart codes are below 2^53: exact as f64.
             let history = c.history.iter().flat_map(|&(node, counterpart, d)| {
-                let code = match counterpart {
-                    Counterpart::Body(b) => f64::from(b),
-                    Counterpart::Wall(w) => WALL_CODE + f64::from(w),
-                };
-                [node as f64, code, d[0], d[1], d[2]]
+                [node as f64, counterpart.code() as f64, d[0], d[1], d[2]]
             });
             out.put_numbers(&name("contact.history"), history.collect());
             let damping = c.damping.iter().flatten().flatten().copied();
@@ -196,17 +191,14 @@ fn contact_from(prefix: &str, history: &[f64], s: &Sections) -> Result<ContactCh
             name("history")
         ));
     }
-    let history: Vec<(usize, Counterpart, [f64; 3])> = history
+    let history = history
         .chunks_exact(HISTORY_NUMBERS)
         .map(|h| {
-            let counterpart = if h[1] >= WALL_CODE {
-                Counterpart::Wall((h[1] - WALL_CODE) as u32)
-            } else {
-                Counterpart::Body(h[1] as u32)
-            };
-            (h[0] as usize, counterpart, three(&h[2..]))
+            let counterpart = Counterpart::from_code(h[1] as u64)
+                .ok_or_else(|| format!("section `{}` holds a bad counterpart", name("history")))?;
+            Ok((h[0] as usize, counterpart, three(&h[2..])))
         })
-        .collect();
+        .collect::<Result<Vec<_>, String>>()?;
     let damping = s
         .numbers_of(&name("damping"), 6 * history.len())?
         .chunks_exact(6)

@@ -149,8 +149,20 @@ impl RunRecord {
     }
 }
 
-/// Reads the record of `run` in `out`, when one exists with the run's key.
+/// Reads the record of `run` in `out`, when one exists with the run's key and finished.
 pub fn finished_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
+    Ok(record(out, run)?.filter(|r| r.completed() && r.peak.is_some()))
+}
+
+/// Reads the record of `run` in `out` when it failed with the run's key: a failure of
+/// the same definition, which another call would repeat (a study runs it again only when
+/// asked to retry failed runs).
+pub fn failed_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
+    Ok(record(out, run)?.filter(|r| r.status == "failed"))
+}
+
+/// Reads the record of `run` in `out`, when one exists with the run's key.
+fn record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
     let path = run_dir(out, run).join(RECORD_FILE);
     if !path.exists() {
         return Ok(None);
@@ -162,22 +174,7 @@ pub fn finished_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, St
             format!("is not a run record: {e}; delete it to run again"),
         )
     })?;
-    Ok((record.key == run.key()? && record.completed() && record.peak.is_some()).then_some(record))
-}
-
-/// Reads the record of `run` in `out` when it failed with the run's key: a failure of
-/// the same definition, which another call would repeat (a study runs it again only when
-/// asked to retry failed runs).
-pub fn failed_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
-    let path = run_dir(out, run).join(RECORD_FILE);
-    if !path.exists() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&path).map_err(|e| StudyError::io("reading", &path, e))?;
-    let Ok(record) = serde_json::from_str::<RunRecord>(&text) else {
-        return Ok(None);
-    };
-    Ok((record.key == run.key()? && record.status == "failed").then_some(record))
+    Ok((record.key == run.key()?).then_some(record))
 }
 
 /// One run of the plan.
@@ -441,11 +438,7 @@ fn one_run(
             }
             prepared.save(&specimen_path)?;
             // A checkpoint of another preparation is not this run's.
-            let checkpoint = dir.join(fdem_triaxial::CHECKPOINT_FILE);
-            if checkpoint.exists() {
-                std::fs::remove_file(&checkpoint)
-                    .map_err(|e| StudyError::io("removing", &checkpoint, e))?;
-            }
+            remove_checkpoint(&dir)?;
             (prepared, false)
         }
     };
@@ -473,14 +466,22 @@ fn one_run(
 /// the directory's checkpoints as that run's.
 fn forget_other_checkpoint(dir: &Path, key: &str) -> Result<(), StudyError> {
     let marker = dir.join(CHECKPOINT_KEY_FILE);
-    let checkpoint = dir.join(fdem_triaxial::CHECKPOINT_FILE);
     let owner = std::fs::read_to_string(&marker).unwrap_or_default();
-    if owner.trim() != key && checkpoint.exists() {
-        std::fs::remove_file(&checkpoint)
-            .map_err(|e| StudyError::io("removing", &checkpoint, e))?;
+    if owner.trim() != key {
+        remove_checkpoint(dir)?;
     }
     fdem_core::fs::write_atomically(&marker, format!("{key}\n"))
         .map_err(|e| StudyError::io("writing", &marker, e))
+}
+
+/// Removes the test checkpoint in `dir`, if there is one.
+fn remove_checkpoint(dir: &Path) -> Result<(), StudyError> {
+    let checkpoint = dir.join(fdem_triaxial::CHECKPOINT_FILE);
+    if checkpoint.exists() {
+        std::fs::remove_file(&checkpoint)
+            .map_err(|e| StudyError::io("removing", &checkpoint, e))?;
+    }
+    Ok(())
 }
 
 /// Records a run that failed (preparation or test) with its reason, and returns it; the

@@ -49,7 +49,6 @@ const fn fixed_size(version: u32) -> usize {
 }
 /// Numbers of one rigid particle's state.
 const RIGID_VALUES: u64 = 13;
-const WALL_FLAG: u64 = 1 << 32;
 
 /// The TOML header of a specimen file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -91,13 +90,6 @@ impl<W: Write> Checked<W> {
     }
     fn f64(&mut self, v: f64) -> std::io::Result<()> {
         self.put(&v.to_le_bytes())
-    }
-}
-
-fn counterpart_code(c: Counterpart) -> u64 {
-    match c {
-        Counterpart::Body(b) => u64::from(b),
-        Counterpart::Wall(w) => WALL_FLAG | u64::from(w),
     }
 }
 
@@ -151,7 +143,7 @@ impl PreparedSpecimen {
             }
             for &(node, c, d) in &s.history {
                 w.u64(node as u64)?;
-                w.u64(counterpart_code(c))?;
+                w.u64(c.code())?;
                 for v in d {
                     w.f64(v)?;
                 }
@@ -567,16 +559,11 @@ fn read_history(
         let node = r.u64().unwrap_or(0);
         let code = r.u64().unwrap_or(0);
         let d: [f64; 3] = std::array::from_fn(|_| r.f64().unwrap_or(f64::NAN));
-        let index = u32::try_from(code & (WALL_FLAG - 1)).unwrap_or(u32::MAX);
-        let counterpart = match code >> 32 {
-            0 => Counterpart::Body(index),
-            1 => Counterpart::Wall(index),
-            _ => {
-                return Err(TriaxialError::file(
-                    path,
-                    format!("corrupted: history entry {i} has counterpart code {code}"),
-                ));
-            }
+        let Some(counterpart) = Counterpart::from_code(code) else {
+            return Err(TriaxialError::file(
+                path,
+                format!("corrupted: history entry {i} has counterpart code {code}"),
+            ));
         };
         history.push((node as usize, counterpart, d));
     }
