@@ -12,12 +12,12 @@
 use crate::broad::{BroadPhase, CHUNK, Candidate};
 use crate::events::{Reason, Rejection};
 use crate::law::{LawInput, evaluate_law};
-use crate::model::{Counterpart, NodeContact, TUNNELLING_FRACTION, history_key};
+use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel};
 use crate::sheet::{self, Sheets};
 use crate::vec3::{add, norm, scale, sub};
 use crate::wall::wall_distance;
-use crate::{ContactError, ContactSurface, NodeCoefficients, Wall, WallShape};
+use crate::{ContactError, ContactSurface, NodeCoefficients, TunnellingScale, Wall, WallShape};
 
 /// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
 const PLANE_SLACK: f64 = 1e-9;
@@ -117,6 +117,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) dt: f64,
     pub(crate) margin: f64,
     pub(crate) depth_limit: f64,
+    /// How far a node may move relative to a face or wall in one step.
+    pub(crate) reach: StepReach,
     /// Whether to check each node against the faces' velocities for tunnelling.
     pub(crate) check_faces: bool,
     /// Whether to check each node against the walls' velocities for tunnelling.
@@ -141,13 +143,26 @@ impl Ctx<'_> {
         previous.get(*cursor).filter(|c| c.key == key)
     }
 
+    /// How far node `k` may move relative to `counterpart` in one step, and the scale
+    /// that sets it ([`StepReach`]).
+    fn reach(&self, counterpart: Counterpart) -> (f64, TunnellingScale) {
+        match counterpart {
+            Counterpart::Body(b) if self.sheets.is_sheet(b) => {
+                (self.reach.sheet, TunnellingScale::Margin)
+            }
+            _ => (self.reach.solid, TunnellingScale::DepthLimit),
+        }
+    }
+
     fn tunnelling(&self, k: usize, relative_to: Counterpart, displacement: f64) -> ContactError {
+        let (reach, scale) = self.reach(relative_to);
         ContactError::Tunnelling {
             node: self.surface.surface_nodes[k],
             body: self.surface.node_body[k],
             relative_to: relative_to.to_string(),
             displacement,
-            margin: self.margin,
+            limit: reach / TUNNELLING_FRACTION,
+            scale,
             dt: self.dt,
         }
     }
@@ -293,8 +308,8 @@ impl Ctx<'_> {
     }
 
     /// The tunnelling check of node `k` (velocity `v`) against every face of the group,
-    /// when this step needs it: the node may not move more than half the margin relative
-    /// to a face's centroid in one step.
+    /// when this step needs it: the node may not move farther than its reach
+    /// ([`StepReach`]) relative to a face's centroid in one step.
     fn check_tunnelling(
         &self,
         k: usize,
@@ -304,13 +319,14 @@ impl Ctx<'_> {
         if !self.check_faces {
             return Ok(());
         }
-        let half = TUNNELLING_FRACTION * self.margin;
+        let counterpart = Counterpart::Body(group.body);
+        let (reach, _) = self.reach(counterpart);
         for c in group.cands {
             let [a, b, cc] = c.nodes.map(|j| self.velocities[j as usize]);
             let vc = scale(add(add(a, b), cc), 1.0 / 3.0);
             let d = norm(sub(v, vc)) * self.dt;
-            if d > half {
-                return Err(self.tunnelling(k, Counterpart::Body(group.body), d));
+            if d > reach {
+                return Err(self.tunnelling(k, counterpart, d));
             }
         }
         Ok(())
@@ -403,7 +419,7 @@ impl Ctx<'_> {
         scratch: &mut ChunkScratch,
         cursor: &mut usize,
     ) -> Result<(), ContactError> {
-        let half = TUNNELLING_FRACTION * self.margin;
+        let reach = self.reach.solid;
         for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
             let Some((distance, normal)) = wall_distance(shape, x) else {
                 continue;
@@ -412,7 +428,7 @@ impl Ctx<'_> {
             let v_rel = sub(v, wall.velocity);
             if self.check_walls {
                 let d = norm(v_rel) * self.dt;
-                if d > half && distance < self.margin + d {
+                if d > reach && distance < self.margin + d {
                     return Err(self.tunnelling(k, counterpart, d));
                 }
             }

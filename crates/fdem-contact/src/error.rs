@@ -163,7 +163,7 @@ pub enum ContactError {
     #[error(
         "tunnelling risk: surface node {node} (body {body}) moves {displacement:.3e} m \
          relative to {relative_to} in one step of dt = {dt:.3e} s, more than half of the \
-         contact margin {margin:.3e} m; reduce the time step or enlarge the margin"
+         {scale} {limit:.3e} m; reduce the time step or enlarge the {scale}"
     )]
     Tunnelling {
         /// Global node id.
@@ -174,8 +174,11 @@ pub enum ContactError {
         relative_to: String,
         /// Relative displacement in one step (m): relative speed times dt.
         displacement: f64,
-        /// The contact margin (m).
-        margin: f64,
+        /// The length of which half may be crossed in one step (m): the margin against a
+        /// sheet, the depth limit against a solid or a wall.
+        limit: f64,
+        /// Which length `limit` is.
+        scale: TunnellingScale,
         /// The time step (s).
         dt: f64,
     },
@@ -185,8 +188,9 @@ pub enum ContactError {
     #[error(
         "surface node {node} (body {body}) penetrates {counterpart} by {depth:.3e} m, more \
          than half of the depth limit {depth_limit:.3e} m beyond which a contact is no longer \
-         detected; raise the depth limit (contact.depth_limit, or the margin it defaults \
-         to), raise the normal penalty, reduce the loading, or remove initial overlaps"
+         detected (and no larger than its cap, where it may grow); raise the depth limit \
+         (contact.depth_limit, or the margin it defaults to), raise the normal penalty, \
+         reduce the loading, or remove initial overlaps"
     )]
     PenetrationTooDeep {
         /// Global node id.
@@ -214,4 +218,24 @@ pub enum ContactError {
         /// The limit.
         limit: usize,
     },
+}
+
+/// The length that bounds a node's motion relative to a counterpart in one step
+/// ([`ContactError::Tunnelling`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TunnellingScale {
+    /// The contact margin (the Verlet skin): against a sheet.
+    Margin,
+    /// The depth limit: against a solid face or a wall, and between bodies not yet
+    /// candidates of each other.
+    DepthLimit,
+}
+
+impl std::fmt::Display for TunnellingScale {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            TunnellingScale::Margin => "contact margin",
+            TunnellingScale::DepthLimit => "depth limit",
+        })
+    }
 }

@@ -41,14 +41,18 @@
 //!
 //! # Choices (documented assumptions)
 //! - Control areas `A` are fixed at set-up from the reference configuration.
-//! - A margin `delta` (m) sets the Verlet skin (rebuild when a node moved `delta / 2`)
-//!   and the tunnelling guard: [`ContactError::Tunnelling`] when a node moves more than
-//!   `delta / 2` relative to a nearby face or wall in one step. Default:
-//!   [`ContactModel::suggested_margin`], a tenth of the shortest surface edge.
+//! - A margin `delta` (m) sets the Verlet skin (rebuild when a node moved `delta / 2`,
+//!   checked at every evaluation) and the tunnelling guard against sheets:
+//!   [`ContactError::Tunnelling`] when a node moves more than `delta / 2` relative to a
+//!   nearby sheet face in one step. Default: [`ContactModel::suggested_margin`], a tenth
+//!   of the shortest surface edge.
 //! - A depth limit `D` (m; `delta` unless [`ContactModel::set_depth_limit`] changes it):
 //!   a node more than `D` behind a face is not in contact with it, and
 //!   [`ContactError::PenetrationTooDeep`] fires when a node is more than `D / 2` behind a
-//!   face (so a contact can never silently pass the depth limit).
+//!   face (so a contact can never silently pass the depth limit). It is also the
+//!   tunnelling scale against solid faces and walls: a node may move `D / 2` relative to
+//!   them in one step, and no two nodes may approach by more than `D` (the distance that
+//!   separates bodies outside each other's candidate lists).
 //! - Broad phase: triangle boxes enlarged by `delta + D` (plus the tolerance band) are
 //!   binned in a uniform grid whose cell is the largest enlarged box extent (at most
 //!   8 cells per triangle); cells are numbered densely when the occupied region is
@@ -124,11 +128,11 @@ mod surface;
 mod vec3;
 mod wall;
 
-pub use error::ContactError;
+pub use error::{ContactError, TunnellingScale};
 pub use law::{LawInput, LawOutput, evaluate_law};
 pub use model::{
-    ContactCheckpoint, ContactModel, ContactReport, Counterpart, MARGIN_EDGE_FRACTION, NodeContact,
-    PairSum, StableStep, TUNNELLING_FRACTION,
+    ContactCheckpoint, ContactModel, ContactReport, Counterpart, DEPTH_LIMIT_GROWTH,
+    MARGIN_EDGE_FRACTION, NodeContact, PairSum, StableStep, TUNNELLING_FRACTION,
 };
 pub use narrow::{BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance};
 pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};

@@ -12,15 +12,53 @@ use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
-use crate::{ContactError, ContactParams, ContactSurface, NodeCoefficients, Wall, WallShape};
+use crate::{
+    ContactError, ContactParams, ContactSurface, NodeCoefficients, TunnellingScale, Wall, WallShape,
+};
 
 /// Fraction of the shortest surface edge used by [`ContactModel::suggested_margin`].
 pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
 
-/// Fraction of the margin that a node may move relative to a nearby face (or wall) in one
-/// step before [`ContactModel::add_forces`] reports [`ContactError::Tunnelling`]; also the
-/// fraction of the depth limit beyond which it reports [`ContactError::PenetrationTooDeep`].
+/// Fraction of its reach ([`StepReach`]) that a node may move relative to a nearby face
+/// (or wall) in one step before [`ContactModel::add_forces`] reports
+/// [`ContactError::Tunnelling`]; also the fraction of the depth limit beyond which it
+/// reports [`ContactError::PenetrationTooDeep`].
 pub const TUNNELLING_FRACTION: f64 = 0.5;
+
+/// When a contact passes half the depth limit, the limit grows to this multiple of its
+/// depth ([`ContactModel::set_depth_limit_cap`]): the contact then sits at a third of it.
+pub const DEPTH_LIMIT_GROWTH: f64 = 3.0;
+
+/// How far a node may move relative to a counterpart in one step before a crossing could
+/// go unseen (m), [`TUNNELLING_FRACTION`] of the scale on which the narrow phase sees it.
+///
+/// The broad phase is rebuilt at the evaluation itself once a node has drifted half the
+/// margin, so a long step never leaves stale candidates; what a long step can hide is the
+/// crossing itself. Against a sheet a new contact deeper than half the margin is taken
+/// for a fold artefact and discarded, so a node that crossed the sheet farther would pass
+/// through it: the sheet's reach is half the margin. Against a solid face or a wall the
+/// narrow phase sees a contact to the depth limit and refuses one deeper than half of it,
+/// so a node that moved less than half the depth limit relative to the face lands where
+/// its contact is seen: the solid reach is half the depth limit. Pairs outside the
+/// candidate lists are at least the depth limit apart (candidate boxes are enlarged by
+/// margin plus depth limit, and each node drifts less than half the margin between
+/// builds), so they cannot meet while no two nodes approach by more than that in a step.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct StepReach {
+    /// Against a sheet's face (m).
+    pub(crate) sheet: f64,
+    /// Against a solid face or a wall (m).
+    pub(crate) solid: f64,
+}
+
+impl StepReach {
+    pub(crate) fn new(margin: f64, depth_limit: f64) -> StepReach {
+        StepReach {
+            sheet: TUNNELLING_FRACTION * margin,
+            solid: TUNNELLING_FRACTION * depth_limit,
+        }
+    }
+}
 
 /// `value` if it is a finite length > 0, else [`ContactError::InvalidLength`].
 pub(crate) fn positive_length(what: &'static str, value: f64) -> Result<f64, ContactError> {
@@ -273,6 +311,8 @@ impl Scan {
 /// The per-pair tunnelling checks one evaluation needs (see `ContactModel::guards`).
 #[derive(Clone, Copy, Debug)]
 struct Guards {
+    /// How far a node may move relative to a face or wall in one step.
+    reach: StepReach,
     /// Node against the centroid velocity of each candidate face.
     check_faces: bool,
     /// Node against each wall.
@@ -292,6 +332,8 @@ pub struct ContactModel {
     n_nodes: usize,
     margin: f64,
     depth_limit: f64,
+    /// The largest depth limit a too deep contact may grow it to (`None`: no growth).
+    depth_limit_cap: Option<f64>,
     kernel: ProjectionKernel,
     coefficients: Vec<NodeCoefficients>,
     masses: Vec<f64>,
@@ -419,6 +461,7 @@ impl ContactModel {
             n_nodes,
             margin,
             depth_limit: margin,
+            depth_limit_cap: None,
             kernel: ProjectionKernel::default(),
             coefficients,
             masses: node_masses,
@@ -551,6 +594,36 @@ impl ContactModel {
         self.depth_limit = positive_length("depth limit", depth_limit)?;
         self.rebuild_requested = true;
         Ok(())
+    }
+
+    /// Lets a contact deeper than half the depth limit grow the limit, up to `cap` (m),
+    /// instead of stopping the evaluation; `None` (the default) keeps the limit fixed.
+    ///
+    /// The stiff vertex contacts of angular particles press deeper as the stress grows,
+    /// and how deep is known only from the run. When a contact reaches half the limit,
+    /// [`ContactModel::add_forces`] sets the limit to [`DEPTH_LIMIT_GROWTH`] times that
+    /// depth (at most `cap`), rebuilds the broad phase and evaluates the step again; only
+    /// a contact deeper than half of `cap` stops it. Contacts shallower than half the old
+    /// limit are the same with either limit (the nearest face behind a node is the one
+    /// within the old window), so the growth changes the candidate lists' cost, not the
+    /// forces. `cap` must stay well below the particles' thickness (see
+    /// [`ContactModel::set_depth_limit`]).
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidLength`] for a cap that is not finite and > 0.
+    pub fn set_depth_limit_cap(&mut self, cap: Option<f64>) -> Result<(), ContactError> {
+        self.depth_limit_cap = cap
+            .map(|c| positive_length("depth limit cap", c))
+            .transpose()?;
+        Ok(())
+    }
+
+    /// The depth limit a contact `depth` (m) deeper than half the current limit grows it
+    /// to, or `None` when the cap does not allow a larger one.
+    fn grown_depth_limit(&self, depth: f64) -> Option<f64> {
+        let cap = self.depth_limit_cap?;
+        let grown = (DEPTH_LIMIT_GROWTH * depth).min(cap);
+        (grown > self.depth_limit && depth <= TUNNELLING_FRACTION * grown).then_some(grown)
     }
 
     /// Spring and dashpot coefficients of surface node `k` (index into
@@ -815,12 +888,25 @@ impl ContactModel {
         // Pass 1: finiteness, Verlet-skin drift, fastest node.
         let scan = self.scan(positions, velocities);
         let v_max = self.check_scan(&scan, positions, velocities, dt)?;
-        let rebuilt = self.rebuild_if_due(positions, scan.max_drift2);
-        let guards = self.guards(v_max, dt);
+        let mut rebuilt = self.rebuild_if_due(positions, scan.max_drift2);
         self.update_geometry(positions, time);
 
-        // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes.
-        self.narrow_phase(positions, velocities, dt, guards)?;
+        // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
+        // contact too deep for the depth limit grows it (within its cap) and the pass runs
+        // again on the new candidate lists.
+        loop {
+            let guards = self.guards(v_max, dt);
+            match self.narrow_phase(positions, velocities, dt, guards) {
+                Err(ContactError::PenetrationTooDeep { depth, .. })
+                    if let Some(grown) = self.grown_depth_limit(depth) =>
+                {
+                    self.depth_limit = grown;
+                    self.rebuild_requested = true;
+                    rebuilt |= self.rebuild_if_due(positions, scan.max_drift2);
+                }
+                result => break result?,
+            }
+        }
 
         // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
         let before = self.jumps.is_some().then(|| self.contacts.clone());
@@ -974,18 +1060,19 @@ impl ContactModel {
                 },
             });
         }
-        let margin = self.margin;
-        // Tunnelling bound for pairs outside the candidate lists: they are more than
-        // `margin` apart, and no two nodes approach faster than twice the largest speed.
+        // Tunnelling bound for pairs outside the candidate lists: they are at least the
+        // depth limit apart ([`StepReach`]), and no two nodes approach faster than twice
+        // the largest speed.
         let v_max = scan.max_speed2.sqrt();
-        if 2.0 * v_max * dt > margin {
+        if 2.0 * v_max * dt > self.depth_limit {
             let k = scan.fastest;
             return Err(ContactError::Tunnelling {
                 node: self.surface.surface_nodes[k],
                 body: self.surface.node_body[k],
                 relative_to: "other bodies (twice its speed bounds the relative speed)".to_string(),
                 displacement: 2.0 * v_max * dt,
-                margin,
+                limit: self.depth_limit,
+                scale: TunnellingScale::DepthLimit,
                 dt,
             });
         }
@@ -1014,17 +1101,18 @@ impl ContactModel {
 
     /// Which per-pair tunnelling checks this step needs, from the largest node speed
     /// `v_max` (m/s): none of them can fire while the relative motion in one step stays
-    /// below half the margin.
+    /// below the smaller reach ([`StepReach`]).
     fn guards(&self, v_max: f64, dt: f64) -> Guards {
-        let half = TUNNELLING_FRACTION * self.margin;
-        let check_faces = 2.0 * v_max * dt > half;
+        let reach = StepReach::new(self.margin, self.depth_limit);
+        let check_faces = 2.0 * v_max * dt > reach.sheet.min(reach.solid);
         let wall_speed = self
             .walls
             .iter()
             .map(|w| norm(w.velocity))
             .fold(0.0, f64::max);
-        let check_walls = (v_max + wall_speed) * dt > half;
+        let check_walls = (v_max + wall_speed) * dt > reach.solid;
         Guards {
+            reach,
             check_faces,
             check_walls,
         }
@@ -1066,6 +1154,7 @@ impl ContactModel {
             dt,
             margin: self.margin,
             depth_limit: self.depth_limit,
+            reach: guards.reach,
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,
             sheets: &self.sheets,
@@ -1163,6 +1252,9 @@ pub struct ContactCheckpoint {
     pub wall_forces: Vec<[f64; 3]>,
     /// Evaluations so far.
     pub evaluations: u64,
+    /// The depth limit (m), which a too deep contact may have grown
+    /// ([`ContactModel::set_depth_limit_cap`]); `None` keeps the model's.
+    pub depth_limit: Option<f64>,
 }
 
 impl ContactModel {
@@ -1178,6 +1270,7 @@ impl ContactModel {
             walls: self.walls.clone(),
             wall_forces: self.wall_forces.clone(),
             evaluations: self.evaluations,
+            depth_limit: Some(self.depth_limit),
         }
     }
 
@@ -1229,6 +1322,9 @@ impl ContactModel {
                 });
             }
         }
+        if let Some(d) = checkpoint.depth_limit {
+            positive_length("checkpoint's depth limit", d)?;
+        }
         let damping_finite = checkpoint.damping.iter().flatten().all(|v| is_finite(*v));
         if checkpoint.damping.len() != checkpoint.history.len() || !damping_finite {
             return Err(ContactError::InconsistentSurface {
@@ -1250,6 +1346,10 @@ impl ContactModel {
         self.walls.clone_from(&checkpoint.walls);
         self.wall_forces.clone_from(&checkpoint.wall_forces);
         self.evaluations = checkpoint.evaluations;
+        if let Some(d) = checkpoint.depth_limit {
+            self.depth_limit = d;
+            self.rebuild_requested = true;
+        }
         Ok(())
     }
 }

@@ -5,8 +5,8 @@ mod common;
 
 use common::{add, cross, linear_sphere, model_for, norm, overlapping_pair, rng, scale, sub};
 use fdem_contact::{
-    ContactError, ContactModel, ContactParams, ContactSurface, Counterpart, Wall,
-    spring_dashpot_time_step,
+    ContactError, ContactModel, ContactParams, ContactSurface, Counterpart, DEPTH_LIMIT_GROWTH,
+    TunnellingScale, Wall, spring_dashpot_time_step,
 };
 use fdem_mesh::{MeshAssembly, Placement};
 use rand::RngExt;
@@ -437,7 +437,7 @@ fn tunnelling_guard_fires_on_a_too_large_step() {
     let msg = err.to_string();
     assert!(matches!(err, ContactError::Tunnelling { .. }), "{msg}");
     assert!(
-        msg.contains("reduce the time step or enlarge the margin"),
+        msg.contains("reduce the time step or enlarge the depth limit"),
         "{msg}"
     );
     // The first node in order (body 0) moving towards a face of the other body.
@@ -461,6 +461,84 @@ fn tunnelling_guard_fires_on_a_too_large_step() {
         .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
         .unwrap_err();
     assert!(matches!(err, ContactError::Tunnelling { .. }), "{err}");
+}
+
+/// Two bodies of `overlapping_pair` flying at each other, each at `per_step` metres per
+/// step of `dt`: the velocities.
+fn approach(assembly: &MeshAssembly, per_step: f64, dt: f64) -> Vec<[f64; 3]> {
+    let centre1: [f64; 3] = assembly.nodes[assembly.bodies[1].nodes.start..]
+        .iter()
+        .fold([0.0; 3], |s, x| add(s, *x));
+    let towards = scale(centre1, -1.0 / norm(centre1));
+    let mut v = vec![[0.0; 3]; assembly.n_nodes()];
+    for i in assembly.bodies[1].nodes.clone() {
+        v[i] = scale(towards, per_step / dt);
+    }
+    for i in assembly.bodies[0].nodes.clone() {
+        v[i] = scale(towards, -per_step / dt);
+    }
+    v
+}
+
+#[test]
+fn tunnelling_reach_is_the_depth_limit_against_solids_and_the_margin_against_sheets() {
+    let mut r = rng(11);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 0.0);
+    let dt = 1e-6;
+    let solid = || {
+        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+        let margin = model.margin();
+        model.set_depth_limit(4.0 * margin).unwrap();
+        (model, margin)
+    };
+    let mut f = vec![[0.0; 3]; assembly.n_nodes()];
+    // 0.6 margin relative per step: more than half the margin, less than half the depth
+    // limit of 4 margins, and less than the depth limit between any two nodes.
+    let (mut model, margin) = solid();
+    let v = approach(&assembly, 0.3 * margin, dt);
+    model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap();
+    // 2.4 margins relative per step: more than half the depth limit.
+    let (mut model, margin) = solid();
+    let v = approach(&assembly, 1.2 * margin, dt);
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        matches!(
+            err,
+            ContactError::Tunnelling {
+                scale: TunnellingScale::DepthLimit,
+                ..
+            }
+        ),
+        "{msg}"
+    );
+    assert!(msg.contains("enlarge the depth limit"), "{msg}");
+    // The same 0.6 margin per step against a sheet: refused on the margin's scale.
+    let (mut model, margin) = solid();
+    model.set_sheet_bodies(&[1], margin).unwrap();
+    let v = approach(&assembly, 0.3 * margin, dt);
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        matches!(
+            err,
+            ContactError::Tunnelling {
+                scale: TunnellingScale::Margin,
+                ..
+            }
+        ),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("a face of body 1") && msg.contains("enlarge the contact margin"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -512,6 +590,59 @@ fn too_deep_penetration_is_an_error_not_a_lost_contact() {
         "{err}"
     );
     assert!(err.to_string().contains("raise the depth limit"), "{err}");
+}
+
+#[test]
+fn a_too_deep_contact_grows_the_depth_limit_within_its_cap() {
+    // The pair of `too_deep_penetration_is_an_error_not_a_lost_contact`, 0.7 margin deep,
+    // with the depth limit at the margin: with a cap of 4 margins the limit grows to three
+    // times the deepest contact and the forces are those of a model built with that limit;
+    // with a cap of 1.2 margins (half of it below the contact) the step is refused.
+    let margin = 1e-4;
+    let deep = overlapping_pair(&mut rng(5), 1, 0.01, 0.7 * margin);
+    let n = deep.n_nodes();
+    let plain = || model_for(&deep, ContactParams::default(), vec![], 1e-4, Some(margin));
+    let evaluate = |model: &mut ContactModel| {
+        let mut f = vec![[0.0; 3]; n];
+        let report = model.add_forces(&deep.nodes, &vec![[0.0; 3]; n], 0.0, 1e-7, &mut f);
+        (report, f)
+    };
+    let mut grown = plain();
+    grown.set_depth_limit_cap(Some(4.0 * margin)).unwrap();
+    let (report, f_grown) = evaluate(&mut grown);
+    let report = report.unwrap();
+    assert!(report.rebuilt && report.contacts > 0);
+    let limit = grown.depth_limit();
+    assert!(
+        limit > 2.0 * report.max_depth && limit <= 4.0 * margin,
+        "{limit}"
+    );
+    assert!(
+        (limit - DEPTH_LIMIT_GROWTH * 0.7 * margin).abs() < 0.05 * limit,
+        "{limit}"
+    );
+    let mut fixed = plain();
+    fixed.set_depth_limit(limit).unwrap();
+    let (_, f_fixed) = evaluate(&mut fixed);
+    assert_eq!(f_grown, f_fixed);
+    // The grown limit is part of the checkpoint.
+    let mut restored = plain();
+    restored.restore_checkpoint(&grown.checkpoint()).unwrap();
+    assert_eq!(restored.depth_limit(), limit);
+
+    let mut capped = plain();
+    capped.set_depth_limit_cap(Some(1.2 * margin)).unwrap();
+    let (err, f) = evaluate(&mut capped);
+    assert!(
+        matches!(err, Err(ContactError::PenetrationTooDeep { .. })),
+        "{err:?}"
+    );
+    assert!(f.iter().all(|x| *x == [0.0; 3]), "nothing added on error");
+    assert_eq!(capped.depth_limit(), margin);
+    for bad in [0.0, f64::NAN] {
+        let e = capped.set_depth_limit_cap(Some(bad)).unwrap_err();
+        assert!(e.to_string().contains("depth limit cap"), "{e}");
+    }
 }
 
 #[test]

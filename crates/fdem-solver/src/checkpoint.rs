@@ -118,6 +118,9 @@ impl SimulationCheckpoint {
             );
             out.put_numbers(&name("contact.wall_forces"), flat(&c.wall_forces));
             out.put_numbers(&name("contact.evaluations"), vec![c.evaluations as f64]);
+            if let Some(d) = c.depth_limit {
+                out.put_numbers(&name("contact.depth_limit"), vec![d]);
+            }
         }
         out.put_numbers(
             &name("contributions"),
@@ -211,12 +214,18 @@ fn contact_from(prefix: &str, history: &[f64], s: &Sections) -> Result<ContactCh
     let walls: Vec<Wall> = walls.chunks_exact(WALL_NUMBERS).map(wall_from).collect();
     let wall_forces = triples(s.numbers_of(&name("wall_forces"), 3 * walls.len())?);
     let evaluations = s.numbers_of(&name("evaluations"), 1)?[0] as u64;
+    // Absent from checkpoints written before the depth limit could grow.
+    let depth_limit = match s.numbers(&name("depth_limit")) {
+        Ok(_) => Some(s.numbers_of(&name("depth_limit"), 1)?[0]),
+        Err(_) => None,
+    };
     Ok(ContactCheckpoint {
         history,
         damping,
         walls,
         wall_forces,
         evaluations,
+        depth_limit,
     })
 }
 

@@ -125,10 +125,14 @@ pub struct SheetBody {
 pub struct ContactSettings {
     /// The penalty law (docs/MODEL.md section 2).
     pub params: ContactParams,
-    /// The contact margin (m): Verlet skin of the broad phase and tunnelling scale.
+    /// The contact margin (m): Verlet skin of the broad phase and tunnelling scale against
+    /// sheets (against solids it is the depth limit).
     pub margin: f64,
     /// How far behind a face the narrow phase looks (m); `None` keeps the margin.
     pub depth_limit: Option<f64>,
+    /// The largest depth limit a too deep contact may grow it to (m); `None` keeps it
+    /// fixed ([`fdem_contact::ContactModel::set_depth_limit_cap`]).
+    pub depth_limit_cap: Option<f64>,
     /// Depth behind a sheet (m) beyond which a particle node's hit is a fold artefact and
     /// discarded; required when the model has sheet bodies.
     pub sheet_fold_depth: Option<f64>,
@@ -523,6 +527,7 @@ fn contact_stage(
     if let Some(depth_limit) = settings.depth_limit {
         model.set_depth_limit(depth_limit)?;
     }
+    model.set_depth_limit_cap(settings.depth_limit_cap)?;
     if !sheets.is_empty() {
         let fold_depth = settings.sheet_fold_depth.ok_or_else(|| {
             SolverError::InvalidScene(

@@ -105,7 +105,7 @@ pub struct ContactSection {
         deserialize_with = "law::damping_ratio::checked"
     )]
     pub damping_ratio: f64,
-    /// Contact margin (m): Verlet skin and tunnelling scale; default a quarter of the
+    /// Contact margin (m): Verlet skin and tunnelling scale against sheets; default a quarter of the
     /// shortest surface edge of the scene.
     #[serde(
         default,
@@ -770,6 +770,7 @@ impl Scene {
             params: self.contact_params(),
             margin,
             depth_limit: c.depth_limit,
+            depth_limit_cap: None,
             sheet_fold_depth: None,
         })
     }

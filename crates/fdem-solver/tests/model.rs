@@ -297,6 +297,7 @@ normal = [0.0, 0.0, 1.0]
         params: ContactParams::default(),
         margin,
         depth_limit: None,
+        depth_limit_cap: None,
         sheet_fold_depth: None,
     });
     model.set_time_step(TimeStep::Automatic { safety: 0.4 });
@@ -390,6 +391,7 @@ fn inconsistent_models_are_refused_with_what_to_change() {
         params: ContactParams::default(),
         margin: 1e-4,
         depth_limit: None,
+        depth_limit_cap: None,
         sheet_fold_depth: None,
     });
     assert!(refusal(folds).contains("sheet fold depth"));

@@ -362,6 +362,7 @@ mesh = {{ level = 2, axes = {axes} }}
             params: ContactParams::default(),
             margin,
             depth_limit: None,
+            depth_limit_cap: None,
             sheet_fold_depth: None,
         });
         model.set_time_step(TimeStep::Automatic { safety: 0.5 });

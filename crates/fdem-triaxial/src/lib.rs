@@ -75,8 +75,9 @@ pub use error::TriaxialError;
 pub use file::{Cached, FORMAT_VERSION, MAGIC};
 pub use jumps::{JUMPS_HEADER, JumpTotal};
 pub use loading::{
-    TEST_DEPTH_LIMIT_MARGINS, TEST_FOLD_DEPTH_MARGINS, TEST_SKIN_FRACTION, TEST_WALL_BOTTOM,
-    TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel, membrane_spec,
+    TEST_DEPTH_LIMIT_CAP_DIAMETERS, TEST_DEPTH_LIMIT_MARGINS, TEST_FOLD_DEPTH_MARGINS,
+    TEST_SKIN_FRACTION, TEST_WALL_BOTTOM, TEST_WALL_MEMBRANE, TEST_WALL_TOP, TestModel,
+    membrane_spec,
 };
 pub use measure::*;
 pub use membrane::*;

@@ -30,8 +30,18 @@ use fdem_solver::{
 /// margin), with room above the deepest contacts the test has measured (same section).
 pub const TEST_DEPTH_LIMIT_MARGINS: f64 = 2.0;
 
+/// The largest depth limit of the test's contacts, in smallest particle diameters: a
+/// contact deeper than half the depth limit grows the limit up to this cap
+/// ([`fdem_contact::ContactModel::set_depth_limit_cap`]) instead of stopping the run.
+/// Vertex contacts press deeper in binary mixtures (a small particle's vertex against a
+/// large one's face) and with exact scaling's softer penalty than the margin-based
+/// default allows (docs/TRIAXIAL.md, "Contact depth limit"). A quarter diameter keeps the
+/// window far below a particle's thickness, so the nearest face behind a node is still
+/// the one it crossed, and lets contacts reach an eighth of the diameter.
+pub const TEST_DEPTH_LIMIT_CAP_DIAMETERS: f64 = 0.25;
+
 /// The test's Verlet skin (the contact model's margin: rebuild distance and tunnelling
-/// scale), in specimen contact margins. Candidate boxes are enlarged by skin plus depth
+/// scale against the membrane), in specimen contact margins. Candidate boxes are enlarged by skin plus depth
 /// limit, and the narrow phase's cost grows faster than that enlargement: a thin skin
 /// pays for the deeper depth limit, keeping the candidate pairs near those of a skin and
 /// depth limit of one margin each (docs/TRIAXIAL.md, "Contact depth limit", has the
@@ -352,8 +362,13 @@ fn particle_scene(prepared: &PreparedSpecimen) -> Result<Scene, TriaxialError> {
 
 /// The test's contact settings: the scene's law and margin, from which the specimen's
 /// margin sets the test's lengths (a thinner Verlet skin, a deeper depth limit unless
-/// `[contact] depth_limit` is given, the membrane's fold depth).
-fn test_contact(scene: &Scene, model: &ModelBuilder) -> Result<ContactSettings, TriaxialError> {
+/// `[contact] depth_limit` is given, the membrane's fold depth), and the depth limit's
+/// cap from the `smallest` particle diameter (m).
+fn test_contact(
+    scene: &Scene,
+    model: &ModelBuilder,
+    smallest: f64,
+) -> Result<ContactSettings, TriaxialError> {
     let base = scene
         .contact_settings(model)
         .map_err(solver_error("set-up"))?;
@@ -364,6 +379,7 @@ fn test_contact(scene: &Scene, model: &ModelBuilder) -> Result<ContactSettings, 
             base.depth_limit
                 .unwrap_or(TEST_DEPTH_LIMIT_MARGINS * margin),
         ),
+        depth_limit_cap: Some(TEST_DEPTH_LIMIT_CAP_DIAMETERS * smallest),
         sheet_fold_depth: Some(TEST_FOLD_DEPTH_MARGINS * margin),
         ..base
     })
@@ -425,7 +441,7 @@ impl TestModel {
             .add_particles(&mut model)
             .map_err(solver_error("set-up"))?;
         let (particles, n_particle_nodes) = (model.n_bodies(), model.n_nodes());
-        let contact = test_contact(&scene, &model)?;
+        let contact = test_contact(&scene, &model, spec.smallest_simulated_size())?;
         let bottom = model.add_wall(Wall::plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]));
         let top = model.add_wall(Wall::plane([0.0, 0.0, spec.height], [0.0, 0.0, -1.0]));
         debug_assert_eq!((bottom, top), (TEST_WALL_BOTTOM, TEST_WALL_TOP));

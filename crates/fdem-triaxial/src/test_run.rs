@@ -110,9 +110,10 @@ pub struct TestPlan {
     pub dt_bound: f64,
     /// What sets the bound.
     pub dt_bound_source: String,
-    /// Contact margin (m): Verlet skin and tunnelling scale.
+    /// Contact margin (m): Verlet skin and tunnelling scale against the membrane.
     pub contact_margin: f64,
-    /// Contact depth limit (m); contacts deeper than half of it stop the run.
+    /// Contact depth limit (m) at the start; a contact deeper than half of it grows it
+    /// (within its cap; the summary's `final_depth_limit`).
     pub depth_limit: f64,
     /// Platen velocity of the shear (m/s).
     pub loading_velocity: f64,
@@ -275,6 +276,10 @@ pub struct TestSummary {
     pub discarded_membrane_hits_max: u64,
     /// Deepest contact seen at the outputs (m), against half the depth limit.
     pub max_contact_depth: f64,
+    /// The depth limit at the end (m): the plan's, or larger where a deeper contact grew
+    /// it (up to `TEST_DEPTH_LIMIT_CAP_DIAMETERS` of the smallest particle diameter).
+    #[serde(default)]
+    pub final_depth_limit: f64,
     /// Relative energy-balance error at the end.
     pub energy_balance_error: f64,
     /// With `TestOptions::energy_jumps`: the stored-energy jumps per phase and cause.
@@ -801,6 +806,7 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
         discarded_membrane_hits: 0,
         discarded_membrane_hits_max: 0,
         max_contact_depth: 0.0,
+        final_depth_limit: f64::NAN,
         energy_balance_error: 0.0,
         energy_jumps: None,
         energy: EnergyReport::default(),
@@ -929,6 +935,11 @@ pub fn run_test(
         summary.discarded_membrane_hits_max,
     ) = run.discarded;
     summary.max_contact_depth = run.max_depth;
+    summary.final_depth_limit = run
+        .model
+        .sim
+        .contact()
+        .map_or(f64::NAN, |c| c.model().depth_limit());
     if let Some(tally) = run.jumps.as_mut() {
         let path = run.options.out_dir.join("energy_jumps.csv");
         summary.energy_jumps = Some(tally.finish().map_err(io(&path))?);
