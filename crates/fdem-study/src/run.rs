@@ -39,8 +39,11 @@ pub const DEFAULT_SECONDS_PER_UNIT_STEP: f64 = 2.0e-7;
 
 /// The directory of a run.
 pub fn run_dir(out: &Path, run: &RunDef) -> PathBuf {
-    out.join("runs").join(run.label())
+    out.join(RUNS_DIR).join(run.label())
 }
+
+/// The study directory's folder of runs, one directory per run.
+const RUNS_DIR: &str = "runs";
 
 /// What one phase of a run cost.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
@@ -159,6 +162,24 @@ pub fn finished_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, St
 /// asked to retry failed runs).
 pub fn failed_record(out: &Path, run: &RunDef) -> Result<Option<RunRecord>, StudyError> {
     Ok(record(out, run)?.filter(|r| r.status == "failed"))
+}
+
+/// Every run record in the study directory `out` that reads (whatever its definition: the
+/// throughput of any finished run of this machine's study informs the estimates), or
+/// `selected` when there are none besides them.
+fn study_records(out: &Path, selected: &[RunRecord]) -> Vec<RunRecord> {
+    let Ok(dirs) = std::fs::read_dir(out.join(RUNS_DIR)) else {
+        return selected.to_vec();
+    };
+    let mut paths: Vec<_> = dirs
+        .filter_map(|d| Some(d.ok()?.path().join(RECORD_FILE)))
+        .collect();
+    paths.sort();
+    let all: Vec<RunRecord> = paths
+        .iter()
+        .filter_map(|p| serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok())
+        .collect();
+    if all.is_empty() { selected.to_vec() } else { all }
 }
 
 /// Reads the record of `run` in `out`, when one exists with the run's key.
@@ -298,7 +319,7 @@ pub fn plan(runs: &[RunDef], out: &Path, retry_failed: bool) -> Result<StudyPlan
         states.push(state);
         finished.extend(record);
     }
-    let measured = throughput(&finished);
+    let measured = throughput(&study_records(out, &finished));
     let rate = measured.seconds_per_unit_step;
     let mut planned = Vec::new();
     for (run, state) in runs.iter().zip(states) {

@@ -570,8 +570,10 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
          runs {} steps with the platens held. Classes: `stable` (every step done, energy \
          balance error at most {:.0} % of its scale), `slow_growth` (done, error between \
          that and the guard's 5 %), `blow_up` (the guard stopped it), `penetration` (a \
-         contact deeper than half the depth limit), `tunnelling` (a node moving more than \
-         half the margin in a step, or a particle leaving the membrane), `non_finite`.\n",
+         contact deeper than half the depth limit, grown to its cap), `tunnelling` (a node \
+         moving farther in a step than half the margin relative to the membrane or half \
+         the depth limit relative to a particle or platen, or a particle leaving the \
+         membrane), `non_finite`.\n",
         PAPER_MODULUS / 1e9,
         spec.steps,
         100.0 * fdem_triaxial::STABLE_ENERGY_ERROR
