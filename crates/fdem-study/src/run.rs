@@ -179,7 +179,11 @@ fn study_records(out: &Path, selected: &[RunRecord]) -> Vec<RunRecord> {
         .iter()
         .filter_map(|p| serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok())
         .collect();
-    if all.is_empty() { selected.to_vec() } else { all }
+    if all.is_empty() {
+        selected.to_vec()
+    } else {
+        all
+    }
 }
 
 /// Reads the record of `run` in `out`, when one exists with the run's key.
