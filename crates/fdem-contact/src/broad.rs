@@ -245,12 +245,43 @@ impl Frame {
 /// every face within reach (their edge contacts and fold filter need faces in front).
 pub(crate) const FRONT_SKINS: f64 = 2.0;
 
-/// Whether `x` lies strictly behind the plane of the face (outward normal by the
-/// right-hand rule of its corners).
+/// Relative slack of the plane pre-filter of the query: a pair is skipped before its
+/// point-triangle distance only when its plane distance exceeds the reach by this fraction,
+/// far above the round-off of either, so the candidates are those of the distance test
+/// alone.
+const PLANE_PREFILTER_SLACK: f64 = 1e-6;
+
+/// The candidate test of node `x` against a face of another body: within `reach2`
+/// (squared) of the face, and either behind its plane (strictly; outward normal by the
+/// right-hand rule of its corners), or `two_sided`, or within `front2` (squared) of it.
+///
+/// The plane distance is a lower bound of the distance to the face, so a pair whose plane
+/// distance exceeds its reach (beyond [`PLANE_PREFILTER_SLACK`]) is skipped before the
+/// point-triangle distance; most faces near a node are in front of it, beyond the front
+/// reach, and are skipped this way.
 #[inline(always)]
-fn behind_plane(x: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> bool {
-    let n = crate::vec3::cross(crate::vec3::sub(b, a), crate::vec3::sub(c, a));
-    crate::vec3::dot(n, crate::vec3::sub(x, a)) < 0.0
+fn is_candidate(
+    x: [f64; 3],
+    face: [[f64; 3]; 3],
+    reach2: f64,
+    front2: f64,
+    two_sided: bool,
+) -> bool {
+    use crate::vec3::{cross, dot, norm2, sub};
+    let [a, b, c] = face;
+    let n = cross(sub(b, a), sub(c, a));
+    let s = dot(n, sub(x, a));
+    let behind = s < 0.0;
+    let limit2 = if behind || two_sided {
+        reach2
+    } else {
+        front2.min(reach2)
+    };
+    if s * s > limit2 * norm2(n) * (1.0 + PLANE_PREFILTER_SLACK) {
+        return false;
+    }
+    let d2 = distance2_to_triangle(x, face);
+    d2 <= reach2 && (d2 <= front2 || two_sided || behind)
 }
 
 #[inline(always)]
@@ -478,10 +509,7 @@ impl BroadPhase {
                                 continue;
                             }
                             let face = surface.triangles[tu].map(|i| positions[i]);
-                            let d2 = distance2_to_triangle(x, face);
-                            if d2 <= reach2
-                                && (d2 <= front2 || two_sided(owner) || behind_plane(x, face))
-                            {
+                            if is_candidate(x, face, reach2, front2, two_sided(owner)) {
                                 tris.push(Candidate {
                                     // Node ids fit in u32: ContactSurface::validate checks
                                     // the node count.

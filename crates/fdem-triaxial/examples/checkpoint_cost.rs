@@ -1,0 +1,76 @@
+//! The cost of a test step at a checkpoint, split into steps with and without a
+//! broad-phase rebuild, and a checksum of the state reached: for measuring a speed change
+//! on a real specimen (run it with the old and the new binary; equal checksums mean the
+//! change left the physics bit for bit as it was).
+//!
+//! `cargo run --release -p fdem-triaxial --example checkpoint_cost -- SPECIMEN CHECKPOINT
+//! STEPS [THREADS]` resumes the test model of the prepared `SPECIMEN` at `CHECKPOINT` (a
+//! `checkpoint.fdemckpt` of the same definition), advances it `STEPS` steps on `THREADS`
+//! threads (default: rayon's default) timing every step, and prints one CSV row: steps,
+//! rebuilds, the mean wall milliseconds of steps with and without a rebuild, a rebuild's
+//! extra cost in plain steps, the candidate pairs and contacts at the end, the broad phase's
+//! cell size and box enlargement (m), and the FNV-1a hash of the node positions' bits. The platens keep the motion they had at the
+//! checkpoint, as in shear.
+use fdem_triaxial::{PreparedSpecimen, TestModel};
+use std::path::Path;
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "usage: checkpoint_cost SPECIMEN CHECKPOINT STEPS [THREADS]";
+    let (Some(specimen), Some(checkpoint), Some(steps)) = (args.first(), args.get(1), args.get(2))
+    else {
+        return Err(usage.into());
+    };
+    let steps: u64 = steps.parse()?;
+    if let Some(threads) = args.get(3) {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads.parse()?)
+            .build_global()?;
+    }
+    let prepared = PreparedSpecimen::load(Path::new(specimen))?;
+    let mut model = TestModel::at_checkpoint(&prepared, Path::new(checkpoint))?;
+    let builds = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().rebuild_count());
+    let (mut plain, mut rebuilt) = ((0u64, 0.0f64), (0u64, 0.0f64));
+    for _ in 0..steps {
+        let before = builds(&model);
+        let t = Instant::now();
+        model.sim.advance()?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let slot = if builds(&model) > before {
+            &mut rebuilt
+        } else {
+            &mut plain
+        };
+        slot.0 += 1;
+        slot.1 += ms;
+    }
+    let mean = |(n, ms): (u64, f64)| if n == 0 { f64::NAN } else { ms / n as f64 };
+    let (plain_ms, rebuilt_ms) = (mean(plain), mean(rebuilt));
+    let (pairs, contacts, cell, enlargement) = model.sim.contact().map_or((0, 0, 0.0, 0.0), |c| {
+        let m = c.model();
+        (
+            m.candidate_pairs().len(),
+            c.last_report().contacts,
+            m.cell_size(),
+            m.candidate_enlargement(),
+        )
+    });
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for x in &model.sim.state().positions {
+        for v in x {
+            for byte in v.to_bits().to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    println!(
+        "steps,rebuilds,ms_plain,ms_rebuild,rebuild_cost_steps,pairs,contacts,cell_size,enlargement,hash"
+    );
+    println!(
+        "{steps},{},{plain_ms:.3},{rebuilt_ms:.3},{:.2},{pairs},{contacts},{cell:e},{enlargement:e},{hash:016x}",
+        rebuilt.0,
+        (rebuilt_ms - plain_ms) / plain_ms,
+    );
+    Ok(())
+}
