@@ -163,6 +163,16 @@ pub(crate) struct BroadPhase {
     /// Number of candidate pairs of the last build.
     pub(crate) pairs: usize,
     boxes: Vec<[f64; 6]>,
+    /// Per surface node, its cell at the last build ([`NO_CELL`] when not listed).
+    node_cells: Vec<u32>,
+    /// Counting-sort cursor of [`BroadPhase::order_nodes_by_cell`].
+    node_cursor: Vec<u32>,
+    /// The surface nodes in listed cells, ordered by cell: the query's order of visits.
+    order: Vec<u32>,
+    /// The query's work items (fixed runs of [`CHUNK`] nodes of `order`).
+    items: Vec<QueryItem>,
+    /// Per surface node, `[item, start, length]` of its list in `items`.
+    located: Vec<[u32; 3]>,
     layout: Layout,
     table: CellTable,
     cell_start: Vec<usize>,
@@ -287,6 +297,75 @@ fn is_candidate(
 #[inline(always)]
 fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
     x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
+}
+
+/// A node's cell is not listed (no triangle's box reaches it).
+const NO_CELL: u32 = u32::MAX;
+
+/// What one work item of the query wrote: the candidates of the nodes it visited, and per
+/// visited node `[node, start, length]` of its list.
+#[derive(Clone, Debug, Default)]
+struct QueryItem {
+    cands: Vec<Candidate>,
+    rows: Vec<[u32; 3]>,
+}
+
+/// The grid and the reaches of one query: the candidate test of a node against the
+/// triangles listed in its cell.
+struct CellTest<'a> {
+    reference: &'a [[f64; 3]],
+    boxes: &'a [[f64; 6]],
+    cell_start: &'a [usize],
+    cell_tris: &'a [u32],
+    reach2: f64,
+    front2: f64,
+}
+
+impl CellTest<'_> {
+    /// Appends to `out` the candidate faces of surface node `k` (in cell `cell`) sorted by
+    /// (owner body, triangle): the triangles of other bodies listed in the cell whose
+    /// enlarged box holds the node and that pass [`is_candidate`].
+    ///
+    /// A node farther than the enlargement from the triangle itself cannot reach it
+    /// before the next build (every point of the face moves at most half the skin, as
+    /// the node does): the box only finds the cell, the distance decides. A node in
+    /// front of the face's plane must first cross the face or the sides of the prism
+    /// behind it; see FRONT_SKINS.
+    #[inline]
+    fn node_candidates(
+        &self,
+        k: usize,
+        cell: u32,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        two_sided: &impl Fn(u32) -> bool,
+        out: &mut Vec<Candidate>,
+    ) {
+        let x = self.reference[k];
+        let body = surface.node_body[k];
+        let before = out.len();
+        let cell = cell as usize;
+        for &t in &self.cell_tris[self.cell_start[cell]..self.cell_start[cell + 1]] {
+            let tu = t as usize;
+            let owner = surface.triangle_body[tu];
+            if owner == body || !in_box(&self.boxes[tu], x) {
+                continue;
+            }
+            let face = surface.triangles[tu].map(|i| positions[i]);
+            if is_candidate(x, face, self.reach2, self.front2, two_sided(owner)) {
+                out.push(Candidate {
+                    // Node ids fit in u32: ContactSurface::validate checks the node count.
+                    nodes: surface.triangles[tu].map(|i| i as u32),
+                    triangle: t,
+                    body: owner,
+                });
+            }
+        }
+        let mine = &mut out[before..];
+        if !mine.is_sorted_by_key(|c| c.body) {
+            mine.sort_unstable_by_key(|c| (c.body, c.triangle));
+        }
+    }
 }
 
 impl BroadPhase {
@@ -455,9 +534,16 @@ impl BroadPhase {
         }
     }
 
-    /// Query pass, parallel over fixed chunks of surface nodes: each chunk lists the
-    /// candidate faces of its nodes (sorted by owner body, then triangle) and their row
-    /// starts.
+    /// Query pass: the candidate faces of every surface node (sorted by owner body, then
+    /// triangle), as rows per chunk of [`CHUNK`] nodes.
+    ///
+    /// The nodes are visited cell by cell ([`BroadPhase::order_nodes_by_cell`]), in fixed
+    /// work items of [`CHUNK`] nodes run in parallel: consecutive nodes then read the same
+    /// cell row, boxes and face nodes while they are in the cache (in node order, which
+    /// jumps between bodies anywhere in the specimen, every node fetched its cell's data
+    /// from memory). A serial pass notes where each node's list lies, and a parallel pass
+    /// copies the lists into node order. Each node's list depends only on the node and its
+    /// cell, so neither the order of visits nor the thread count changes it.
     fn query(
         &mut self,
         frame: Frame,
@@ -465,26 +551,98 @@ impl BroadPhase {
         surface: &ContactSurface,
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
-        let n_surface = surface.surface_nodes.len();
+        self.order_nodes_by_cell(frame);
+        let n_items = self.order.len().div_ceil(CHUNK);
+        self.items.resize_with(n_items, QueryItem::default);
+        self.items.truncate(n_items);
+        let test = CellTest {
+            reference: &self.reference,
+            boxes: &self.boxes,
+            cell_start: &self.cell_start,
+            cell_tris: &self.cell_tris,
+            reach2: self.enlargement * self.enlargement,
+            front2: self.front * self.front,
+        };
+        let (order, node_cells) = (&self.order, &self.node_cells);
+        self.items.par_iter_mut().enumerate().for_each(|(i, item)| {
+            item.cands.clear();
+            item.rows.clear();
+            let visits = &order[i * CHUNK..((i + 1) * CHUNK).min(order.len())];
+            for &k in visits {
+                let k = k as usize;
+                let start = item.cands.len();
+                test.node_candidates(
+                    k,
+                    node_cells[k],
+                    positions,
+                    surface,
+                    &two_sided,
+                    &mut item.cands,
+                );
+                item.rows
+                    .push([k as u32, start as u32, (item.cands.len() - start) as u32]);
+            }
+        });
+        self.locate_rows(surface.surface_nodes.len());
+        self.assemble_rows();
+    }
+
+    /// Numbers the cell of every surface node (its reference position) and orders the
+    /// nodes that lie in a listed cell by cell, in increasing node order within a cell (a
+    /// counting sort); nodes outside every listed cell have no candidates.
+    fn order_nodes_by_cell(&mut self, frame: Frame) {
+        let (layout, table) = (self.layout, &self.table);
+        self.node_cells.clear();
+        self.node_cells.extend(
+            self.reference
+                .iter()
+                .map(|&x| lookup(layout, table, frame.cell(x)).map_or(NO_CELL, |c| c as u32)),
+        );
+        let n_cells = self.cell_start.len().saturating_sub(1);
+        let cursor = &mut self.node_cursor;
+        cursor.clear();
+        cursor.resize(n_cells + 1, 0);
+        for &c in &self.node_cells {
+            if c != NO_CELL {
+                cursor[c as usize + 1] += 1;
+            }
+        }
+        for c in 1..cursor.len() {
+            cursor[c] += cursor[c - 1];
+        }
+        let listed = cursor[n_cells] as usize;
+        self.order.clear();
+        self.order.resize(listed, 0);
+        for (k, &c) in self.node_cells.iter().enumerate() {
+            if c != NO_CELL {
+                let slot = &mut cursor[c as usize];
+                self.order[*slot as usize] = k as u32;
+                *slot += 1;
+            }
+        }
+    }
+
+    /// Where each surface node's list lies: `located[k] = [item, start, length]` (nodes
+    /// never visited keep an empty list).
+    fn locate_rows(&mut self, n_surface: usize) {
+        self.located.clear();
+        self.located.resize(n_surface, [0; 3]);
+        for (i, item) in self.items.iter().enumerate() {
+            for &[k, start, len] in &item.rows {
+                self.located[k as usize] = [i as u32, start, len];
+            }
+        }
+    }
+
+    /// Copies the lists into node order, in parallel over the chunks of [`CHUNK`] nodes.
+    fn assemble_rows(&mut self) {
+        let n_surface = self.located.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
         self.chunk_cands.resize_with(n_chunks, Vec::new);
         self.chunk_cands.truncate(n_chunks);
         self.chunk_starts.resize_with(n_chunks, Vec::new);
         self.chunk_starts.truncate(n_chunks);
-        let reference = &self.reference;
-        // A node farther than the enlargement from the triangle itself cannot reach it
-        // before the next build (every point of the face moves at most half the skin, as
-        // the node does): the box only finds the cell, the distance decides. A node in
-        // front of the face's plane must first cross the face or the sides of the prism
-        // behind it; see FRONT_SKINS.
-        let e = self.enlargement;
-        let reach2 = e * e;
-        let front2 = self.front * self.front;
-        let boxes = &self.boxes;
-        let table = &self.table;
-        let layout = self.layout;
-        let cell_start = &self.cell_start;
-        let cell_tris = &self.cell_tris;
+        let (items, located) = (&self.items, &self.located);
         self.chunk_cands
             .par_iter_mut()
             .zip(self.chunk_starts.par_iter_mut())
@@ -493,36 +651,12 @@ impl BroadPhase {
                 tris.clear();
                 starts.clear();
                 starts.push(0);
-                let start = chunk * CHUNK;
-                let end = (start + CHUNK).min(n_surface);
-                for (offset, &x) in reference[start..end].iter().enumerate() {
-                    let k = start + offset;
-                    let body = surface.node_body[k];
-                    let before = tris.len();
-                    let c = frame.cell(x);
-                    if let Some(cell) = lookup(layout, table, c) {
-                        let row = cell_start[cell]..cell_start[cell + 1];
-                        for &t in &cell_tris[row] {
-                            let tu = t as usize;
-                            let owner = surface.triangle_body[tu];
-                            if owner == body || !in_box(&boxes[tu], x) {
-                                continue;
-                            }
-                            let face = surface.triangles[tu].map(|i| positions[i]);
-                            if is_candidate(x, face, reach2, front2, two_sided(owner)) {
-                                tris.push(Candidate {
-                                    // Node ids fit in u32: ContactSurface::validate checks
-                                    // the node count.
-                                    nodes: surface.triangles[tu].map(|i| i as u32),
-                                    triangle: t,
-                                    body: owner,
-                                });
-                            }
-                        }
-                    }
-                    let mine = &mut tris[before..];
-                    if !mine.is_sorted_by_key(|c| c.body) {
-                        mine.sort_unstable_by_key(|c| (c.body, c.triangle));
+                for &[i, start, len] in
+                    &located[chunk * CHUNK..((chunk + 1) * CHUNK).min(n_surface)]
+                {
+                    if len > 0 {
+                        let (start, len) = (start as usize, len as usize);
+                        tris.extend_from_slice(&items[i as usize].cands[start..start + len]);
                     }
                     starts.push(tris.len());
                 }
