@@ -463,6 +463,16 @@ fn tunnelling_guard_fires_on_a_too_large_step() {
     assert!(matches!(err, ContactError::Tunnelling { .. }), "{err}");
 }
 
+/// Asserts that `err` is a tunnelling error on `scale`; returns its message.
+fn tunnelling_on_scale(err: ContactError, scale: TunnellingScale) -> String {
+    let msg = err.to_string();
+    assert!(
+        matches!(err, ContactError::Tunnelling { scale: s, .. } if s == scale),
+        "{msg}"
+    );
+    msg
+}
+
 /// Two bodies of `overlapping_pair` flying at each other, each at `per_step` metres per
 /// step of `dt`: the velocities.
 fn approach(assembly: &MeshAssembly, per_step: f64, dt: f64) -> Vec<[f64; 3]> {
@@ -505,17 +515,7 @@ fn tunnelling_reach_is_the_depth_limit_against_solids_and_the_margin_against_she
     let err = model
         .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
         .unwrap_err();
-    let msg = err.to_string();
-    assert!(
-        matches!(
-            err,
-            ContactError::Tunnelling {
-                scale: TunnellingScale::DepthLimit,
-                ..
-            }
-        ),
-        "{msg}"
-    );
+    let msg = tunnelling_on_scale(err, TunnellingScale::DepthLimit);
     assert!(msg.contains("enlarge the depth limit"), "{msg}");
     // The same 0.6 margin per step against a sheet: refused on the margin's scale.
     let (mut model, margin) = solid();
@@ -524,17 +524,7 @@ fn tunnelling_reach_is_the_depth_limit_against_solids_and_the_margin_against_she
     let err = model
         .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
         .unwrap_err();
-    let msg = err.to_string();
-    assert!(
-        matches!(
-            err,
-            ContactError::Tunnelling {
-                scale: TunnellingScale::Margin,
-                ..
-            }
-        ),
-        "{msg}"
-    );
+    let msg = tunnelling_on_scale(err, TunnellingScale::Margin);
     assert!(
         msg.contains("a face of body 1") && msg.contains("enlarge the contact margin"),
         "{msg}"
