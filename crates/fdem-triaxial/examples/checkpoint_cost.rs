@@ -4,9 +4,10 @@
 //! change left the physics bit for bit as it was).
 //!
 //! `cargo run --release -p fdem-triaxial --example checkpoint_cost -- SPECIMEN CHECKPOINT
-//! STEPS [THREADS]` resumes the test model of the prepared `SPECIMEN` at `CHECKPOINT` (a
-//! `checkpoint.fdemckpt` of the same definition), advances it `STEPS` steps on `THREADS`
-//! threads (default: rayon's default) timing every step, and prints one CSV row: steps,
+//! STEPS [THREADS [DEPTH_LIMIT]]` resumes the test model of the prepared `SPECIMEN` at
+//! `CHECKPOINT` (a `checkpoint.fdemckpt` of the same definition), optionally with another
+//! contact depth limit (m), advances it `STEPS` steps on `THREADS` threads (default:
+//! rayon's default) timing every step, and prints one CSV row: steps,
 //! rebuilds, the mean wall milliseconds of steps with and without a rebuild, a rebuild's
 //! extra cost in plain steps, the candidate pairs and contacts at the end, the broad phase's
 //! cell size and box enlargement (m), and the FNV-1a hash of the node positions' bits. The platens keep the motion they had at the
@@ -17,7 +18,7 @@ use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: checkpoint_cost SPECIMEN CHECKPOINT STEPS [THREADS]";
+    let usage = "usage: checkpoint_cost SPECIMEN CHECKPOINT STEPS [THREADS [DEPTH_LIMIT]]";
     let (Some(specimen), Some(checkpoint), Some(steps)) = (args.first(), args.get(1), args.get(2))
     else {
         return Err(usage.into());
@@ -30,6 +31,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let prepared = PreparedSpecimen::load(Path::new(specimen))?;
     let mut model = TestModel::at_checkpoint(&prepared, Path::new(checkpoint))?;
+    if let Some(limit) = args.get(4) {
+        let contact = model.sim.contact_mut().ok_or("the test has no contact model")?;
+        contact.model_mut().set_depth_limit(limit.parse()?)?;
+    }
     let builds = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().rebuild_count());
     let (mut plain, mut rebuilt) = ((0u64, 0.0f64), (0u64, 0.0f64));
     for _ in 0..steps {
