@@ -1,16 +1,19 @@
-//! Broad phase: a spatial hash over the surface triangles with a Verlet skin.
+//! Broad phase: a uniform grid over the surface nodes with a Verlet skin.
 //!
-//! Every triangle's bounding box, enlarged by `margin + depth limit` (plus the barycentric tolerance
-//! band), is registered in every cell of a uniform grid it overlaps; the cell size is the
-//! largest enlarged box extent, so a box overlaps at most 2 cells per axis. Cells are
-//! numbered densely (`i + nx (j + ny k)`) when the occupied region holds at most 4 cells
-//! per triangle, and otherwise through their packed integer coordinates in a deterministic
-//! open-addressing table (fixed hash function, slots numbered in insertion order); their
-//! triangles are stored as compressed rows, so a build costs O(triangles + surface
-//! nodes). A surface node's candidates are the triangles of other bodies listed in its
-//! own cell whose enlarged box contains it and that lie within the enlargement of it (the
-//! point-triangle distance; the box's corners hold many pairs farther than that), sorted
-//! by (owner body, triangle).
+//! Every triangle's bounding box is enlarged by `margin + depth limit` (plus the barycentric
+//! tolerance band). The surface nodes are binned into a uniform grid (a counting sort by
+//! cell), and each triangle visits the cells its enlarged box overlaps: a node of another
+//! body in those cells whose position lies in the box and within the enlargement of the
+//! triangle itself (the point-triangle distance; the box's corners hold many pairs farther
+//! than that) is a candidate pair. The cell size is half the mean enlarged box (at least an
+//! eighth of the largest), so a box overlaps a few cells of a few nodes each. Cells are
+//! numbered densely (`i + nx (j + ny k)`) when the nodes' region holds at most
+//! [`DENSE_CELLS_PER_NODE`] cells per node, and otherwise through their packed integer
+//! coordinates in a deterministic open-addressing table (fixed hash function, slots
+//! numbered in insertion order). Triangles are scanned in parallel in fixed chunks, and the
+//! pairs are then placed into each node's list in triangle order, sorted by (owner body,
+//! triangle): the lists are the same for every thread count, and a build costs
+//! O(triangles + surface nodes + pairs).
 //!
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
@@ -155,29 +158,31 @@ pub(crate) struct BroadPhase {
     /// Surface node positions at the last build.
     pub(crate) reference: Vec<[f64; 3]>,
     /// Candidate faces per chunk of [`CHUNK`] surface nodes, sorted by (owner body,
-    /// triangle) per node: the query writes each chunk's list in parallel and the narrow
-    /// phase reads it in place (no serial gather into one array).
+    /// triangle) per node; the narrow phase reads them in place.
     chunk_cands: Vec<Vec<Candidate>>,
     /// Per chunk, the row starts of its nodes in `chunk_cands` (one more than its nodes).
     chunk_starts: Vec<Vec<usize>>,
     /// Number of candidate pairs of the last build.
     pub(crate) pairs: usize,
+    /// Enlarged triangle boxes at the last build.
     boxes: Vec<[f64; 6]>,
-    /// Per surface node, its cell at the last build ([`NO_CELL`] when not listed).
-    node_cells: Vec<u32>,
-    /// Counting-sort cursor of [`BroadPhase::order_nodes_by_cell`].
-    node_cursor: Vec<u32>,
-    /// The surface nodes in listed cells, ordered by cell: the query's order of visits.
-    order: Vec<u32>,
-    /// The query's work items (fixed runs of [`CHUNK`] nodes of `order`).
-    items: Vec<QueryItem>,
-    /// Per surface node, `[item, start, length]` of its list in `items`.
-    located: Vec<[u32; 3]>,
     layout: Layout,
     table: CellTable,
+    /// Row starts of the cells' nodes in `cell_nodes` (one more than the cells).
     cell_start: Vec<usize>,
-    cell_cursor: Vec<usize>,
-    cell_tris: Vec<u32>,
+    /// The surface nodes by cell, in increasing order within a cell.
+    cell_nodes: Vec<u32>,
+    /// Per surface node, its cell number.
+    node_cells: Vec<u32>,
+    /// Reference positions of the nodes of `cell_nodes`, in its order.
+    cell_x: Vec<[f64; 3]>,
+    /// Bodies of the nodes of `cell_nodes`, in its order.
+    cell_body: Vec<u32>,
+    /// Pairs `(surface node, candidate)` found by each fixed chunk of triangles, in
+    /// triangle order.
+    found: Vec<Vec<(u32, Candidate)>>,
+    /// Per surface node, the next free slot of its list while the pairs are placed.
+    cursor: Vec<usize>,
 }
 
 /// How cells are numbered: a dense box of cells when the occupied region is compact
@@ -191,9 +196,14 @@ enum Layout {
     },
 }
 
-/// Dense layouts are used up to this many cells per triangle (and at least this floor).
-const DENSE_CELLS_PER_TRIANGLE: usize = 4;
+/// Dense layouts are used up to this many cells per surface node (and at least this
+/// floor).
+const DENSE_CELLS_PER_NODE: usize = 8;
 const DENSE_MIN_CELLS: usize = 1 << 12;
+
+/// Triangles per parallel work item of the scan (fixed, so the lists never depend on the
+/// thread count).
+const TRIANGLE_CHUNK: usize = 2048;
 
 /// The cell number of integer cell coordinates, `None` for an empty cell.
 #[inline(always)]
@@ -229,11 +239,18 @@ impl Frame {
         ]
     }
 
-    /// Calls `f` with the coordinates of every cell a box overlaps, `x` fastest.
+    /// Calls `f` with the coordinates of every cell a box overlaps, `x` fastest; with a
+    /// dense layout, only the cells of its grid (the others hold no node).
     #[inline(always)]
-    fn for_each_cell(self, bx: &[f64; 6], mut f: impl FnMut([i64; 3])) {
-        let lo = self.cell([bx[0], bx[1], bx[2]]);
-        let hi = self.cell([bx[3], bx[4], bx[5]]);
+    fn for_each_cell_within(self, layout: Layout, bx: &[f64; 6], mut f: impl FnMut([i64; 3])) {
+        let mut lo = self.cell([bx[0], bx[1], bx[2]]);
+        let mut hi = self.cell([bx[3], bx[4], bx[5]]);
+        if let Layout::Dense { dims } = layout {
+            for d in 0..3 {
+                lo[d] = lo[d].max(0);
+                hi[d] = hi[d].min(dims[d] - 1);
+            }
+        }
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
                 for i in lo[0]..=hi[0] {
@@ -299,75 +316,6 @@ fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
     x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
 }
 
-/// A node's cell is not listed (no triangle's box reaches it).
-const NO_CELL: u32 = u32::MAX;
-
-/// What one work item of the query wrote: the candidates of the nodes it visited, and per
-/// visited node `[node, start, length]` of its list.
-#[derive(Clone, Debug, Default)]
-struct QueryItem {
-    cands: Vec<Candidate>,
-    rows: Vec<[u32; 3]>,
-}
-
-/// The grid and the reaches of one query: the candidate test of a node against the
-/// triangles listed in its cell.
-struct CellTest<'a> {
-    reference: &'a [[f64; 3]],
-    boxes: &'a [[f64; 6]],
-    cell_start: &'a [usize],
-    cell_tris: &'a [u32],
-    reach2: f64,
-    front2: f64,
-}
-
-impl CellTest<'_> {
-    /// Appends to `out` the candidate faces of surface node `k` (in cell `cell`) sorted by
-    /// (owner body, triangle): the triangles of other bodies listed in the cell whose
-    /// enlarged box holds the node and that pass [`is_candidate`].
-    ///
-    /// A node farther than the enlargement from the triangle itself cannot reach it
-    /// before the next build (every point of the face moves at most half the skin, as
-    /// the node does): the box only finds the cell, the distance decides. A node in
-    /// front of the face's plane must first cross the face or the sides of the prism
-    /// behind it; see FRONT_SKINS.
-    #[inline]
-    fn node_candidates(
-        &self,
-        k: usize,
-        cell: u32,
-        positions: &[[f64; 3]],
-        surface: &ContactSurface,
-        two_sided: &impl Fn(u32) -> bool,
-        out: &mut Vec<Candidate>,
-    ) {
-        let x = self.reference[k];
-        let body = surface.node_body[k];
-        let before = out.len();
-        let cell = cell as usize;
-        for &t in &self.cell_tris[self.cell_start[cell]..self.cell_start[cell + 1]] {
-            let tu = t as usize;
-            let owner = surface.triangle_body[tu];
-            if owner == body || !in_box(&self.boxes[tu], x) {
-                continue;
-            }
-            let face = surface.triangles[tu].map(|i| positions[i]);
-            if is_candidate(x, face, self.reach2, self.front2, two_sided(owner)) {
-                out.push(Candidate {
-                    // Node ids fit in u32: ContactSurface::validate checks the node count.
-                    nodes: surface.triangles[tu].map(|i| i as u32),
-                    triangle: t,
-                    body: owner,
-                });
-            }
-        }
-        let mine = &mut out[before..];
-        if !mine.is_sorted_by_key(|c| c.body) {
-            mine.sort_unstable_by_key(|c| (c.body, c.triangle));
-        }
-    }
-}
-
 impl BroadPhase {
     /// Rebuilds grid and candidates from the current positions; positions must be finite
     /// (the model checks them first).
@@ -390,12 +338,11 @@ impl BroadPhase {
         self.reference
             .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
         let e = self.enlarged_boxes(positions, surface, reach);
-        let (frame, cells) = self.choose_layout(surface.triangles.len());
-        self.bin_triangles(frame, cells, surface.triangles.len());
         // The reach in front of a face's plane: see FRONT_SKINS.
-        let front = FRONT_SKINS * skin + (e - reach);
-        self.front = front;
-        self.query(frame, positions, surface, two_sided);
+        self.front = FRONT_SKINS * skin + (e - reach);
+        let frame = self.bin_nodes(&surface.node_body);
+        self.scan_triangles(frame, positions, surface, two_sided);
+        self.place_pairs(surface);
         self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
         self.built = true;
         self.builds += 1;
@@ -409,17 +356,20 @@ impl BroadPhase {
         surface: &ContactSurface,
         reach: f64,
     ) -> f64 {
-        // Raw triangle boxes and the largest extent.
+        // Raw triangle boxes, the largest extent and the sum of the extents.
         self.boxes.clear();
-        let mut largest = 0.0_f64;
+        let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
         for tri in &surface.triangles {
             let [a, b, c] = tri.map(|i| positions[i]);
             let mut bx = [0.0; 6];
+            let mut extent = 0.0_f64;
             for d in 0..3 {
                 bx[d] = a[d].min(b[d]).min(c[d]);
                 bx[d + 3] = a[d].max(b[d]).max(c[d]);
-                largest = largest.max(bx[d + 3] - bx[d]);
+                extent = extent.max(bx[d + 3] - bx[d]);
             }
+            largest = largest.max(extent);
+            sum += extent;
             self.boxes.push(bx);
         }
         // margin + depth limit: both the node and the face may move margin/2 before the next
@@ -433,15 +383,18 @@ impl BroadPhase {
                 bx[d + 3] += e;
             }
         }
-        self.cell_size = largest + 2.0 * e;
+        // Half the mean enlarged box: a box overlaps about three cells per axis, each with
+        // a few nodes; an eighth of the largest bounds the cells a large face visits.
+        let mean = sum / surface.triangles.len().max(1) as f64;
+        self.cell_size = (0.5 * (mean + 2.0 * e)).max((largest + 2.0 * e) / 8.0);
         e
     }
 
-    /// The grid's frame over the reference positions and the enlarged boxes, and the cell
-    /// numbering: dense when the occupied region holds at most
-    /// [`DENSE_CELLS_PER_TRIANGLE`] cells per triangle (then also its number of cells),
-    /// else the hash table.
-    fn choose_layout(&mut self, n_triangles: usize) -> (Frame, Option<usize>) {
+    /// Bins the surface nodes (their reference positions) into the grid: numbers the
+    /// cells, dense when the nodes' region holds at most [`DENSE_CELLS_PER_NODE`] cells per
+    /// node, else through the hash table, and sorts the nodes by cell (a counting sort,
+    /// increasing node order within a cell). Returns the grid's frame.
+    fn bin_nodes(&mut self, node_body: &[u32]) -> Frame {
         let inv = 1.0 / self.cell_size;
         let mut origin = [f64::INFINITY; 3];
         let mut top = [f64::NEG_INFINITY; 3];
@@ -451,214 +404,197 @@ impl BroadPhase {
                 top[d] = top[d].max(x[d]);
             }
         }
-        for bx in &self.boxes {
-            for d in 0..3 {
-                origin[d] = origin[d].min(bx[d]);
-                top[d] = top[d].max(bx[d + 3]);
-            }
-        }
         if !origin.iter().chain(&top).all(|o| o.is_finite()) {
             origin = [0.0; 3];
             top = [0.0; 3];
         }
         let frame = Frame { origin, inv };
-        let extent = frame.cell(top);
-        let dims = extent.map(|e| e.saturating_add(1).max(1));
-        let budget = (DENSE_CELLS_PER_TRIANGLE * n_triangles).max(DENSE_MIN_CELLS);
+        let dims = frame.cell(top).map(|e| e.saturating_add(1).max(1));
+        let n = self.reference.len();
+        let budget = (DENSE_CELLS_PER_NODE * n).max(DENSE_MIN_CELLS);
         let cells = dims
             .iter()
-            .try_fold(1usize, |acc, &n| acc.checked_mul(usize::try_from(n).ok()?));
+            .try_fold(1usize, |acc, &d| acc.checked_mul(usize::try_from(d).ok()?));
         self.layout = match cells {
-            Some(n) if n <= budget => Layout::Dense { dims },
+            Some(c) if c <= budget => Layout::Dense { dims },
             _ => Layout::Hash,
         };
-        (frame, cells)
-    }
-
-    /// Lists every triangle in the cells its enlarged box overlaps (compressed rows,
-    /// triangles in increasing order within each cell); `cells` is the dense layout's
-    /// number of cells.
-    fn bin_triangles(&mut self, frame: Frame, cells: Option<usize>, n_triangles: usize) {
-        // Count pass: number every overlapped cell, count its triangles.
-        self.cell_start.clear();
-        let counts = &mut self.cell_start;
+        // Number every node's cell (a node always lies in the grid: its own cell).
+        self.node_cells.clear();
         match self.layout {
             Layout::Dense { .. } => {
-                counts.resize(cells.unwrap_or(0), 0);
                 let (layout, table) = (self.layout, &self.table);
-                for bx in &self.boxes {
-                    frame.for_each_cell(bx, |c| {
-                        if let Some(c) = lookup(layout, table, c) {
-                            counts[c] += 1;
-                        }
-                    });
-                }
+                self.node_cells.extend(
+                    self.reference
+                        .iter()
+                        .map(|&x| lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)),
+                );
             }
             Layout::Hash => {
                 let table = &mut self.table;
-                table.reset(n_triangles / 2);
-                for bx in &self.boxes {
-                    frame.for_each_cell(bx, |[i, j, k]| {
-                        let c = table.insert(pack(i, j, k)) as usize;
-                        if c == counts.len() {
-                            counts.push(0);
-                        }
-                        counts[c] += 1;
-                    });
-                }
+                table.reset(n);
+                self.node_cells.extend(self.reference.iter().map(|&x| {
+                    let [i, j, k] = frame.cell(x);
+                    table.insert(pack(i, j, k))
+                }));
             }
         }
-        // Prefix sums into row starts.
-        let mut running = 0usize;
-        for s in &mut self.cell_start {
-            let count = *s;
-            *s = running;
-            running += count;
+        let n_cells = match self.layout {
+            Layout::Dense { .. } => cells.unwrap_or(0),
+            Layout::Hash => self.table.len,
+        };
+        // Counting sort: row starts, then the nodes in increasing order into their rows.
+        let start = &mut self.cell_start;
+        start.clear();
+        start.resize(n_cells + 1, 0);
+        for &c in &self.node_cells {
+            start[c as usize + 1] += 1;
         }
-        self.cell_start.push(running);
-        self.cell_cursor.clear();
-        self.cell_cursor.extend_from_slice(&self.cell_start);
-        self.cell_tris.clear();
-        self.cell_tris.resize(running, 0);
-        // Fill pass, triangles in increasing order within each cell.
-        let (layout, table) = (self.layout, &self.table);
-        let (cursor, cell_tris) = (&mut self.cell_cursor, &mut self.cell_tris);
-        for (t, bx) in self.boxes.iter().enumerate() {
-            frame.for_each_cell(bx, |c| {
-                if let Some(c) = lookup(layout, table, c) {
-                    let slot = &mut cursor[c];
-                    cell_tris[*slot] = t as u32;
-                    *slot += 1;
-                }
-            });
+        for c in 1..start.len() {
+            start[c] += start[c - 1];
         }
+        self.cursor.clear();
+        self.cursor.extend_from_slice(&start[..n_cells]);
+        self.cell_nodes.clear();
+        self.cell_nodes.resize(n, 0);
+        for (k, &c) in self.node_cells.iter().enumerate() {
+            let slot = &mut self.cursor[c as usize];
+            self.cell_nodes[*slot] = k as u32;
+            *slot += 1;
+        }
+        // Positions and bodies in the same order, so the scan reads a cell's nodes
+        // sequentially.
+        self.cell_x.clear();
+        self.cell_x
+            .extend(self.cell_nodes.iter().map(|&k| self.reference[k as usize]));
+        self.cell_body.clear();
+        self.cell_body
+            .extend(self.cell_nodes.iter().map(|&k| node_body[k as usize]));
+        frame
     }
 
-    /// Query pass: the candidate faces of every surface node (sorted by owner body, then
-    /// triangle), as rows per chunk of [`CHUNK`] nodes.
+    /// The scan, parallel over fixed chunks of [`TRIANGLE_CHUNK`] triangles: every
+    /// triangle visits the cells its enlarged box overlaps and keeps the nodes of other
+    /// bodies there whose position lies in the box and that pass [`is_candidate`]; each
+    /// chunk lists its pairs in triangle order.
     ///
-    /// The nodes are visited cell by cell ([`BroadPhase::order_nodes_by_cell`]), in fixed
-    /// work items of [`CHUNK`] nodes run in parallel: consecutive nodes then read the same
-    /// cell row, boxes and face nodes while they are in the cache (in node order, which
-    /// jumps between bodies anywhere in the specimen, every node fetched its cell's data
-    /// from memory). A serial pass notes where each node's list lies, and a parallel pass
-    /// copies the lists into node order. Each node's list depends only on the node and its
-    /// cell, so neither the order of visits nor the thread count changes it.
-    fn query(
+    /// A node farther than the enlargement from the triangle itself cannot reach it
+    /// before the next build (every point of the face moves at most half the skin, as
+    /// the node does): the box only finds the cells, the distance decides. A node in
+    /// front of the face's plane must first cross the face or the sides of the prism
+    /// behind it; see FRONT_SKINS.
+    fn scan_triangles(
         &mut self,
         frame: Frame,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
-        self.order_nodes_by_cell(frame);
-        let n_items = self.order.len().div_ceil(CHUNK);
-        self.items.resize_with(n_items, QueryItem::default);
-        self.items.truncate(n_items);
-        let test = CellTest {
-            reference: &self.reference,
-            boxes: &self.boxes,
-            cell_start: &self.cell_start,
-            cell_tris: &self.cell_tris,
-            reach2: self.enlargement * self.enlargement,
-            front2: self.front * self.front,
-        };
-        let (order, node_cells) = (&self.order, &self.node_cells);
-        self.items.par_iter_mut().enumerate().for_each(|(i, item)| {
-            item.cands.clear();
-            item.rows.clear();
-            let visits = &order[i * CHUNK..((i + 1) * CHUNK).min(order.len())];
-            for &k in visits {
-                let k = k as usize;
-                let start = item.cands.len();
-                test.node_candidates(
-                    k,
-                    node_cells[k],
-                    positions,
-                    surface,
-                    &two_sided,
-                    &mut item.cands,
-                );
-                item.rows
-                    .push([k as u32, start as u32, (item.cands.len() - start) as u32]);
-            }
-        });
-        self.locate_rows(surface.surface_nodes.len());
-        self.assemble_rows();
-    }
-
-    /// Numbers the cell of every surface node (its reference position) and orders the
-    /// nodes that lie in a listed cell by cell, in increasing node order within a cell (a
-    /// counting sort); nodes outside every listed cell have no candidates.
-    fn order_nodes_by_cell(&mut self, frame: Frame) {
+        let n_chunks = surface.triangles.len().div_ceil(TRIANGLE_CHUNK);
+        self.found.resize_with(n_chunks, Vec::new);
+        self.found.truncate(n_chunks);
+        let e = self.enlargement;
+        let (reach2, front2) = (e * e, self.front * self.front);
         let (layout, table) = (self.layout, &self.table);
-        self.node_cells.clear();
-        self.node_cells.extend(
-            self.reference
-                .iter()
-                .map(|&x| lookup(layout, table, frame.cell(x)).map_or(NO_CELL, |c| c as u32)),
-        );
-        let n_cells = self.cell_start.len().saturating_sub(1);
-        let cursor = &mut self.node_cursor;
-        cursor.clear();
-        cursor.resize(n_cells + 1, 0);
-        for &c in &self.node_cells {
-            if c != NO_CELL {
-                cursor[c as usize + 1] += 1;
-            }
-        }
-        for c in 1..cursor.len() {
-            cursor[c] += cursor[c - 1];
-        }
-        let listed = cursor[n_cells] as usize;
-        self.order.clear();
-        self.order.resize(listed, 0);
-        for (k, &c) in self.node_cells.iter().enumerate() {
-            if c != NO_CELL {
-                let slot = &mut cursor[c as usize];
-                self.order[*slot as usize] = k as u32;
-                *slot += 1;
-            }
-        }
+        let boxes = &self.boxes;
+        let (cell_start, cell_nodes) = (&self.cell_start, &self.cell_nodes);
+        let (cell_x, cell_body) = (&self.cell_x, &self.cell_body);
+        self.found
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(chunk, pairs)| {
+                pairs.clear();
+                let first = chunk * TRIANGLE_CHUNK;
+                let last = (first + TRIANGLE_CHUNK).min(surface.triangles.len());
+                let triangles = first..last;
+                let rows = boxes[triangles.clone()]
+                    .iter()
+                    .zip(&surface.triangles[triangles.clone()])
+                    .zip(&surface.triangle_body[triangles.clone()]);
+                for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
+                    let face = ids.map(|i| positions[i]);
+                    let sided = two_sided(owner);
+                    frame.for_each_cell_within(layout, bx, |c| {
+                        let Some(cell) = lookup(layout, table, c) else {
+                            return;
+                        };
+                        let row = cell_start[cell]..cell_start[cell + 1];
+                        for ((&k, &x), &body) in cell_nodes[row.clone()]
+                            .iter()
+                            .zip(&cell_x[row.clone()])
+                            .zip(&cell_body[row])
+                        {
+                            if body != owner
+                                && in_box(bx, x)
+                                && is_candidate(x, face, reach2, front2, sided)
+                            {
+                                pairs.push((
+                                    k,
+                                    Candidate {
+                                        // Node ids fit in u32: ContactSurface::validate
+                                        // checks the node count.
+                                        nodes: ids.map(|i| i as u32),
+                                        triangle: t as u32,
+                                        body: owner,
+                                    },
+                                ));
+                            }
+                        }
+                    });
+                }
+            });
     }
 
-    /// Where each surface node's list lies: `located[k] = [item, start, length]` (nodes
-    /// never visited keep an empty list).
-    fn locate_rows(&mut self, n_surface: usize) {
-        self.located.clear();
-        self.located.resize(n_surface, [0; 3]);
-        for (i, item) in self.items.iter().enumerate() {
-            for &[k, start, len] in &item.rows {
-                self.located[k as usize] = [i as u32, start, len];
-            }
-        }
-    }
-
-    /// Copies the lists into node order, in parallel over the chunks of [`CHUNK`] nodes.
-    fn assemble_rows(&mut self) {
-        let n_surface = self.located.len();
+    /// Places the pairs into the nodes' lists (compressed rows per chunk of [`CHUNK`]
+    /// nodes): counts per node, row starts, then the chunks' pairs in triangle order, so
+    /// each list is in increasing triangle order; a list that is not then sorted by owner
+    /// body is sorted by (owner body, triangle).
+    fn place_pairs(&mut self, surface: &ContactSurface) {
+        let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
         self.chunk_cands.resize_with(n_chunks, Vec::new);
         self.chunk_cands.truncate(n_chunks);
         self.chunk_starts.resize_with(n_chunks, Vec::new);
         self.chunk_starts.truncate(n_chunks);
-        let (items, located) = (&self.items, &self.located);
+        // Counts per node, then row starts per chunk and each node's first slot.
+        self.cursor.clear();
+        self.cursor.resize(n_surface, 0);
+        for &(k, _) in self.found.iter().flatten() {
+            self.cursor[k as usize] += 1;
+        }
+        for (chunk, (cands, starts)) in self
+            .chunk_cands
+            .iter_mut()
+            .zip(&mut self.chunk_starts)
+            .enumerate()
+        {
+            starts.clear();
+            starts.push(0);
+            let mut running = 0;
+            for slot in &mut self.cursor[chunk * CHUNK..((chunk + 1) * CHUNK).min(n_surface)] {
+                let count = *slot;
+                *slot = running;
+                running += count;
+                starts.push(running);
+            }
+            cands.clear();
+            cands.resize(running, Candidate::default());
+        }
+        for &(k, cand) in self.found.iter().flatten() {
+            let k = k as usize;
+            let slot = &mut self.cursor[k];
+            self.chunk_cands[k / CHUNK][*slot] = cand;
+            *slot += 1;
+        }
         self.chunk_cands
             .par_iter_mut()
-            .zip(self.chunk_starts.par_iter_mut())
-            .enumerate()
-            .for_each(|(chunk, (tris, starts))| {
-                tris.clear();
-                starts.clear();
-                starts.push(0);
-                for &[i, start, len] in
-                    &located[chunk * CHUNK..((chunk + 1) * CHUNK).min(n_surface)]
-                {
-                    if len > 0 {
-                        let (start, len) = (start as usize, len as usize);
-                        tris.extend_from_slice(&items[i as usize].cands[start..start + len]);
+            .zip(self.chunk_starts.par_iter())
+            .for_each(|(cands, starts)| {
+                for row in starts.windows(2) {
+                    let mine = &mut cands[row[0]..row[1]];
+                    if !mine.is_sorted_by_key(|c| c.body) {
+                        mine.sort_unstable_by_key(|c| (c.body, c.triangle));
                     }
-                    starts.push(tris.len());
                 }
             });
     }

@@ -32,7 +32,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let prepared = PreparedSpecimen::load(Path::new(specimen))?;
     let mut model = TestModel::at_checkpoint(&prepared, Path::new(checkpoint))?;
     if let Some(limit) = args.get(4) {
-        let contact = model.sim.contact_mut().ok_or("the test has no contact model")?;
+        let contact = model
+            .sim
+            .contact_mut()
+            .ok_or("the test has no contact model")?;
         contact.model_mut().set_depth_limit(limit.parse()?)?;
     }
     let builds = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().rebuild_count());
