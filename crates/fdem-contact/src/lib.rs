@@ -53,12 +53,13 @@
 //!   tunnelling scale against solid faces and walls: a node may move `D / 2` relative to
 //!   them in one step, and no two nodes may approach by more than `D` (the distance that
 //!   separates bodies outside each other's candidate lists).
-//! - Broad phase: triangle boxes enlarged by `delta + D` (plus the tolerance band) are
-//!   binned in a uniform grid whose cell is the largest enlarged box extent (at most
-//!   8 cells per triangle); cells are numbered densely when the occupied region is
-//!   compact (up to 4 cells per triangle) and through a seedless hash table otherwise.
-//!   A surface node's candidates are the other bodies' triangles in its cell whose
-//!   enlarged box holds it and that lie within `delta + D` (plus the band) of it. Builds and evaluations are O(surface nodes + triangles).
+//! - Broad phase: the surface nodes are binned in a uniform grid (cells of half the mean
+//!   triangle box enlarged by `delta + D` plus the tolerance band); cells are numbered
+//!   densely when the nodes' region is compact (up to 8 cells per node) and through a
+//!   seedless hash table otherwise. Each triangle visits the cells its enlarged box
+//!   overlaps: a node of another body there whose position the box holds and that lies
+//!   within `delta + D` (plus the band) of the triangle is a candidate. Builds and
+//!   evaluations are O(surface nodes + triangles + candidate pairs).
 //! - Narrow phase: per (node, other body) the contact face is the nearest one (smallest
 //!   depth) among the faces the node is behind with its foot inside (within
 //!   [`BARYCENTRIC_TOLERANCE`]), on a sheet the nearest edge when no face covers the
@@ -76,7 +77,7 @@
 //! # Modules
 //! - `model`: [`ContactModel`] (set-up, settings, the three passes of
 //!   [`ContactModel::add_forces`], history export and import) and its report types.
-//! - `broad`: the spatial hash and the Verlet skin (candidate faces per surface node).
+//! - `broad`: the node grid and the Verlet skin (candidate faces per surface node).
 //! - `detect`: the narrow-phase pass, the contacts of each surface node against its
 //!   candidates and the walls, evaluated with the law in fixed chunks.
 //! - `sheet`: what a sheet body is, and the rules contact with it needs (closest point with

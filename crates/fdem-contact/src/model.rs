@@ -710,7 +710,7 @@ impl ContactModel {
         self.broad.front
     }
 
-    /// Cell size of the spatial hash at the last build (m).
+    /// Cell size of the broad phase's node grid at the last build (m).
     pub fn cell_size(&self) -> f64 {
         self.broad.cell_size
     }
