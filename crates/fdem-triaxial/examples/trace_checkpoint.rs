@@ -6,7 +6,8 @@
 //! `checkpoint.fdemckpt` of the same definition) and advances it `STEPS` steps, printing
 //! every `EVERY` steps (default 100) and at every step where the fastest particle node
 //! moves faster than twice the last print's: the step, the time, the fastest particle
-//! node (speed, body), the kinetic energy of the particles and the deepest contact. It
+//! node (speed, body), the kinetic energy of the particles, the deepest contact and the
+//! fastest membrane node's speed. It
 //! stops at the first error and prints it. The platens keep the motion they had at the
 //! checkpoint, as in shear.
 use fdem_triaxial::{PreparedSpecimen, TestModel};
@@ -34,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         b
     };
     let mut last_speed = 0.0f64;
-    println!("step,time,max_speed,node,body,kinetic_energy,max_depth");
+    println!("step,time,max_speed,node,body,kinetic_energy,max_depth,membrane_max_speed");
     for k in 1..=steps {
         if let Err(e) = model.sim.advance() {
             println!("error at step {}: {e}", model.sim.step());
@@ -55,8 +56,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .sim
                 .contact()
                 .map_or(0.0, |c| c.last_report().max_depth);
+            let membrane = model.sim.state().velocities[particle_nodes..]
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+                .fold(0.0, f64::max);
             println!(
-                "{},{:e},{speed:e},{node},{},{kinetic:e},{depth:e}",
+                "{},{:e},{speed:e},{node},{},{kinetic:e},{depth:e},{membrane:e}",
                 model.sim.step(),
                 model.sim.time(),
                 body_of[node]
