@@ -283,6 +283,8 @@ mod tests {
             sigma_r: f64::NAN,
             eta_measured: f64::NAN,
             hoop_strain: f64::NAN,
+            draped_volume: f64::NAN,
+            eps_v_specimen: f64::NAN,
         }
     }
 

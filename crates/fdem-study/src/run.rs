@@ -7,8 +7,8 @@ use crate::cost::{peak_memory, reset_peak_memory};
 use crate::metrics::{PeakContacts, peak_contacts};
 use crate::{RunDef, StudyError};
 use fdem_triaxial::{
-    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestSummary, TriaxialError,
-    prepare, run_test, specimen_time_step,
+    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestPhase, TestSummary,
+    TriaxialError, prepare, run_test, specimen_time_step,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -216,7 +216,9 @@ pub struct PlannedRun {
     /// Estimated wall-clock seconds (0 for a reused run).
     pub seconds: f64,
     /// `finished` (reused), `failed` (a failure of the same definition, not run again
-    /// unless failed runs are retried), `prepared` (its specimen is reused) or `new`.
+    /// unless failed runs are retried), `resumes` (from its test's checkpoint, estimated
+    /// at the pace of the checkpoint's phase), `prepared` (its specimen is reused) or
+    /// `new`.
     pub state: &'static str,
 }
 
@@ -295,6 +297,42 @@ fn throughput(records: &[RunRecord]) -> Throughput {
     }
 }
 
+/// The checkpoint of `run`'s test in its directory, when there is one of this run.
+fn own_checkpoint(out: &Path, run: &RunDef) -> Result<Option<PathBuf>, StudyError> {
+    let dir = run_dir(out, run);
+    let path = dir.join(fdem_triaxial::CHECKPOINT_FILE);
+    let owner = std::fs::read_to_string(dir.join(CHECKPOINT_KEY_FILE)).unwrap_or_default();
+    Ok((path.exists() && owner.trim() == run.key()?).then_some(path))
+}
+
+/// What is left of a run that resumes from its checkpoint, at the pace the checkpoint's
+/// phase has had so far (a large run's step costs more per unit than the small runs
+/// behind `seconds_per_step`, so its own pace is the better guide); `steps` is the
+/// plan's estimate of the whole test's steps.
+fn resumed_seconds(
+    run: &RunDef,
+    out: &Path,
+    seconds_per_step: f64,
+    steps: u64,
+) -> Result<f64, StudyError> {
+    let Some(path) = own_checkpoint(out, run)? else {
+        return Ok(seconds_per_step * steps as f64);
+    };
+    let at = fdem_triaxial::checkpoint_progress(&path)?;
+    let shear = run.spec.shear_steps(at.dt);
+    let left = match at.phase {
+        TestPhase::Shear => shear.saturating_sub(at.steps),
+        // At least the shear; consolidation as the plan has it, less what is done.
+        TestPhase::Consolidation => shear.max(steps.saturating_sub(at.steps)),
+    };
+    let pace = if at.steps > 0 && at.wall_seconds > 0.0 {
+        at.wall_seconds / at.steps as f64
+    } else {
+        seconds_per_step
+    };
+    Ok(pace * left as f64)
+}
+
 /// The shear steps of `run` at its particles' stable step (before any correction).
 pub fn planned_steps(run: &RunDef) -> Result<u64, StudyError> {
     let (_, bound, _) = specimen_time_step(&run.spec)?;
@@ -316,7 +354,11 @@ pub fn plan(runs: &[RunDef], out: &Path, retry_failed: bool) -> Result<StudyPlan
             PreparedSpecimen::cached(&run_dir(out, run).join(SPECIMEN_FILE), &run.spec),
             Cached::Reusable(_)
         ) {
-            "prepared"
+            if own_checkpoint(out, run)?.is_some() {
+                "resumes"
+            } else {
+                "prepared"
+            }
         } else {
             "new"
         };
@@ -335,6 +377,7 @@ pub fn plan(runs: &[RunDef], out: &Path, retry_failed: bool) -> Result<StudyPlan
             "finished" | "failed" => 0.0,
             // The preparation is about a third of a run's steps (docs/STUDY.md).
             "prepared" => rate * units as f64 * steps as f64 * 2.0 / 3.0,
+            "resumes" => resumed_seconds(run, out, rate * units as f64, steps)?,
             _ => rate * units as f64 * steps as f64,
         };
         planned.push(PlannedRun {

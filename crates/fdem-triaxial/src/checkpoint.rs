@@ -18,8 +18,9 @@ use std::path::Path;
 /// The checkpoint's file name in the test's output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.fdemckpt";
 const MAGIC: &[u8; 8] = b"FDEMCKPT";
-/// Format version this build writes and reads.
-const VERSION: u32 = 1;
+/// Format version this build writes and reads (2: the stage's reference holds the
+/// membrane's draped volume).
+const VERSION: u32 = 2;
 
 /// Where the test stood.
 #[derive(Clone, Debug, PartialEq)]
@@ -31,15 +32,15 @@ pub(crate) enum Stage {
         ramp: [f64; 4],
         /// Time and volume of the last equilibrium check.
         last_volume: [f64; 2],
-        /// Height and volume at the start of consolidation.
-        reference: [f64; 2],
+        /// Height, volume and the membrane's draped volume at the start of consolidation.
+        reference: [f64; 3],
     },
     /// In shear, after `steps` steps from time `t0`.
     Shear {
         steps: u64,
         t0: f64,
-        /// Height and volume at the start of shear.
-        reference: [f64; 2],
+        /// Height, volume and the membrane's draped volume at the start of shear.
+        reference: [f64; 3],
         /// Axial strain of the next curve row.
         next_output: f64,
     },
@@ -86,30 +87,27 @@ fn stage_numbers(stage: &Stage) -> Vec<f64> {
             t0,
             reference,
             next_output,
-        } => vec![
-            1.0,
-            steps as f64,
-            t0,
-            reference[0],
-            reference[1],
-            next_output,
-        ],
+        } => [1.0, steps as f64, t0]
+            .into_iter()
+            .chain(reference)
+            .chain([next_output])
+            .collect(),
     }
 }
 
 fn stage_from(n: &[f64]) -> Result<Stage, String> {
     match (n.first().copied(), n.len()) {
-        (Some(0.0), 10) => Ok(Stage::Consolidation {
+        (Some(0.0), 11) => Ok(Stage::Consolidation {
             steps: n[1] as u64,
             ramp: [n[2], n[3], n[4], n[5]],
             last_volume: [n[6], n[7]],
-            reference: [n[8], n[9]],
+            reference: [n[8], n[9], n[10]],
         }),
-        (Some(1.0), 6) => Ok(Stage::Shear {
+        (Some(1.0), 7) => Ok(Stage::Shear {
             steps: n[1] as u64,
             t0: n[2],
-            reference: [n[3], n[4]],
-            next_output: n[5],
+            reference: [n[3], n[4], n[5]],
+            next_output: n[6],
         }),
         _ => Err("section `test.stage` is not a stage".into()),
     }
@@ -187,6 +185,37 @@ impl TestCheckpoint {
         };
         parse().map_err(bad)
     }
+}
+
+/// Where the checkpoint of a test stood, for estimates of what is left.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CheckpointProgress {
+    /// The phase it was written in.
+    pub phase: crate::TestPhase,
+    /// Steps done in that phase.
+    pub steps: u64,
+    /// The simulation's step (s).
+    pub dt: f64,
+    /// Wall-clock seconds the phase had taken (all earlier processes together).
+    pub wall_seconds: f64,
+}
+
+/// Where the checkpoint at `path` stood (it reads the whole file).
+///
+/// # Errors
+/// As [`TestCheckpoint::read`].
+pub fn checkpoint_progress(path: &Path) -> Result<CheckpointProgress, TriaxialError> {
+    let c = TestCheckpoint::read(path)?;
+    let (phase, steps) = match c.stage {
+        Stage::Consolidation { steps, .. } => (crate::TestPhase::Consolidation, steps),
+        Stage::Shear { steps, .. } => (crate::TestPhase::Shear, steps),
+    };
+    Ok(CheckpointProgress {
+        phase,
+        steps,
+        dt: c.sim.dt,
+        wall_seconds: c.seconds[0],
+    })
 }
 
 impl crate::TestModel {

@@ -68,7 +68,7 @@ mod spec;
 mod test_run;
 mod test_spec;
 
-pub use checkpoint::CHECKPOINT_FILE;
+pub use checkpoint::{CHECKPOINT_FILE, CheckpointProgress, checkpoint_progress};
 pub use compare::{COMPARISON_HEADER, FinishedRun, RunCost, comparison_row, write_comparison};
 pub use counts::{ClassCount, Counts, sphere_volume};
 pub use error::TriaxialError;

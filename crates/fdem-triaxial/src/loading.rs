@@ -601,6 +601,17 @@ impl TestModel {
         )
     }
 
+    /// The volume by which the membrane drapes into the surface voids, with envelope
+    /// window `window` (m^3; [`crate::MembraneForces::draped_volume`]).
+    pub fn draped_volume(&self, window: f64) -> f64 {
+        self.membrane().draped_volume(
+            &self.sim.state().positions,
+            self.platen_z(TEST_WALL_BOTTOM),
+            self.platen_z(TEST_WALL_TOP),
+            window,
+        )
+    }
+
     /// Axial force F_l (N): what the particles push the top platen up with (compression
     /// positive).
     pub fn axial_force(&self) -> f64 {

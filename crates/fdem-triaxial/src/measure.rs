@@ -152,6 +152,9 @@ pub struct Measurement {
     pub lateral_force: f64,
     /// Mean hoop strain of the membrane's free rings ([`hoop_strain`]) (-).
     pub hoop_strain: f64,
+    /// Volume by which the membrane drapes into the surface voids (m^3):
+    /// [`crate::MembraneForces::draped_volume`].
+    pub draped_volume: f64,
 }
 
 /// The reference state of the shear stage: the end of isotropic consolidation.
@@ -163,6 +166,10 @@ pub struct Reference {
     pub v0: f64,
     /// Confining pressure `sigma_0` (Pa).
     pub sigma_0: f64,
+    /// The membrane's draped volume at the start of shear (m^3); `V0` plus this is the
+    /// volume inside the envelope of the outermost particles.
+    #[serde(default)]
+    pub draped0: f64,
 }
 
 /// One row of `curve.csv`.
@@ -212,11 +219,20 @@ pub struct CurvePoint {
     /// Mean hoop strain of the membrane's free rings of nodes, from its stress-free mesh
     /// ([`hoop_strain`]) (-); NaN when read from a file without the column.
     pub hoop_strain: f64,
+    /// Volume by which the membrane drapes into the surface voids (m^3,
+    /// [`crate::MembraneForces::draped_volume`]); NaN when read from a file without the
+    /// column.
+    pub draped_volume: f64,
+    /// Volumetric strain of the specimen inside the envelope of its outermost particles,
+    /// `-ln((V + V_d) / (V0 + V_d0))` with `V_d` the draped volume (-): eq 13 without the
+    /// membrane's penetration into the surface voids, which is `eps_v - eps_v_specimen`;
+    /// NaN when read from a file without the column.
+    pub eps_v_specimen: f64,
 }
 
 impl CurvePoint {
     /// Numbers of [`CurvePoint::to_numbers`].
-    pub const NUMBERS: usize = 19;
+    pub const NUMBERS: usize = 21;
 
     /// The row as numbers, in the column order of `curve.csv` (counts as exact floats),
     /// for a checkpoint.
@@ -241,6 +257,8 @@ impl CurvePoint {
             self.sigma_r,
             self.eta_measured,
             self.hoop_strain,
+            self.draped_volume,
+            self.eps_v_specimen,
         ]
     }
 
@@ -266,6 +284,8 @@ impl CurvePoint {
             sigma_r: n[16],
             eta_measured: n[17],
             hoop_strain: n[18],
+            draped_volume: n[19],
+            eps_v_specimen: n[20],
         }
     }
 
@@ -294,6 +314,11 @@ impl CurvePoint {
             sigma_r,
             eta_measured: stress_ratio(sigma_a, sigma_r),
             hoop_strain: m.hoop_strain,
+            draped_volume: m.draped_volume,
+            eps_v_specimen: volumetric_strain(
+                reference.v0 + reference.draped0,
+                m.volume + m.draped_volume,
+            ),
         }
     }
 
@@ -306,18 +331,25 @@ impl CurvePoint {
     }
 
     /// The optional real columns, after `step` ([`CURVE_OPTIONAL`] order).
-    fn lateral(&self) -> [f64; 3] {
-        [self.sigma_r, self.eta_measured, self.hoop_strain]
+    fn lateral(&self) -> [f64; 5] {
+        [
+            self.sigma_r,
+            self.eta_measured,
+            self.hoop_strain,
+            self.draped_volume,
+            self.eps_v_specimen,
+        ]
     }
 
     #[rustfmt::skip]
-    fn from_columns(r: [f64; 14], contacts: u64, step: u64, lateral: [f64; 3]) -> CurvePoint {
+    fn from_columns(r: [f64; 14], contacts: u64, step: u64, lateral: [f64; 5]) -> CurvePoint {
         let [time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q, ke, uf, ee,
              md] = r;
-        let [sigma_r, eta_measured, hoop_strain] = lateral;
+        let [sigma_r, eta_measured, hoop_strain, draped_volume, eps_v_specimen] = lateral;
         CurvePoint { time, eps_a, eps_v, sigma_a, eta, height, volume, axial_force, p, q,
                      kinetic_energy: ke, unbalanced_force: uf, energy_error: ee, max_depth: md,
-                     contacts, step, sigma_r, eta_measured, hoop_strain }
+                     contacts, step, sigma_r, eta_measured, hoop_strain, draped_volume,
+                     eps_v_specimen }
     }
 
     fn csv_line(&self) -> String {
@@ -335,11 +367,17 @@ impl CurvePoint {
 
 /// Header line of `curve.csv`; the column order of [`CurveWriter`]: the required columns
 /// of [`read_curve`], then the [`CURVE_OPTIONAL`] ones.
-pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,energy_error,max_depth,contacts,step,sigma_r,eta_measured,hoop_strain";
+pub const CURVE_HEADER: &str = "time,eps_a,eps_v,sigma_a,eta,height,volume,axial_force,p,q,kinetic_energy,unbalanced_force,energy_error,max_depth,contacts,step,sigma_r,eta_measured,hoop_strain,draped_volume,eps_v_specimen";
 
 /// The columns [`read_curve`] reads when present and sets to NaN when absent (files
-/// written before the lateral stress was measured).
-pub const CURVE_OPTIONAL: [&str; 3] = ["sigma_r", "eta_measured", "hoop_strain"];
+/// written before the lateral stress or the draped volume was measured).
+pub const CURVE_OPTIONAL: [&str; 5] = [
+    "sigma_r",
+    "eta_measured",
+    "hoop_strain",
+    "draped_volume",
+    "eps_v_specimen",
+];
 
 /// Writes `curve.csv` row by row.
 ///
@@ -456,7 +494,7 @@ pub fn read_curve(path: impl AsRef<Path>) -> Result<Vec<CurvePoint>, CurveError>
             let (s, bad) = field(k)?;
             s.parse().map_err(|_| bad("a non-negative integer"))
         };
-        let mut lateral = [f64::NAN; 3];
+        let mut lateral = [f64::NAN; CURVE_OPTIONAL.len()];
         for ((value, position), name) in lateral.iter_mut().zip(optional).zip(CURVE_OPTIONAL) {
             let Some(k) = position else { continue };
             let s = fields.get(k).ok_or_else(|| {
@@ -516,6 +554,9 @@ pub struct CurveSummary {
     pub final_eps_a: f64,
     /// Volumetric strain of the last point.
     pub final_eps_v: f64,
+    /// `eps_v_specimen` of the last point: the specimen's own volumetric strain, without
+    /// the membrane's penetration (NaN when the curve has no such column).
+    pub final_eps_v_specimen: f64,
     /// Number of points summarized.
     pub points: usize,
 }
@@ -567,6 +608,7 @@ pub fn summarize(points: &[CurvePoint], residual_window: f64) -> Option<CurveSum
         eta_measured_at_peak: peak.eta_measured,
         final_eps_a: last.eps_a,
         final_eps_v: last.eps_v,
+        final_eps_v_specimen: last.eps_v_specimen,
         points: points.len(),
     })
 }
@@ -750,6 +792,7 @@ mod tests {
             h0: 0.2,
             v0: 0.002,
             sigma_0: 1e5,
+            draped0: 1e-5,
         };
         let (height, volume) = (0.18, 0.002 * 0.99);
         let axial_force = 4e5 * volume / height; // sigma_l = 4 sigma_0
@@ -760,11 +803,16 @@ mod tests {
             axial_force,
             contacts: 12,
             step: 7,
+            draped_volume: 3e-5,
             ..Measurement::default()
         };
         let p = CurvePoint::from_measurement(&m, &r);
         assert!(close(p.eps_a, (0.2f64 / 0.18).ln(), 1e-15));
         assert!(close(p.eps_v, -(0.99f64.ln()), 1e-15));
+        // The volume lost to the membrane's draping (2e-5 m^3 more) is not the specimen's:
+        // inside the envelope, 0.00201 -> 0.00201 (1.98e-3 + 3e-5).
+        assert_eq!(p.draped_volume, 3e-5);
+        assert!(p.eps_v_specimen.abs() < 1e-12 && p.eps_v > 0.009);
         assert!(close(p.sigma_a, 4e5, 1e-6) && close(p.eta, 1.5, 1e-12));
         assert!(close(p.p, 2e5, 1e-6) && close(p.q, 3e5, 1e-6));
         assert_eq!((p.contacts, p.step, p.time, p.height), (12, 7, 0.5, 0.18));
@@ -819,6 +867,10 @@ mod tests {
         assert!(close(s.max_dilation_rate, 0.5, 1e-9), "{s:?}");
         let last = points.last().unwrap();
         assert_eq!((s.final_eps_a, s.final_eps_v), (last.eps_a, last.eps_v));
+        assert_eq!(
+            s.final_eps_v_specimen.to_bits(),
+            last.eps_v_specimen.to_bits()
+        );
         // Noise of +-1e-4 on eps_v: the windowed fit stays within 0.03 of the slope.
         let s = summarize(&synthetic(1e-4), 0.02).unwrap();
         assert!(close(s.max_dilation_rate, 0.5, 0.03), "{s:?}");
@@ -876,7 +928,7 @@ mod tests {
             std::array::from_fn(|i| *reals.iter().chain(&more).nth(i).unwrap()),
             u64::MAX,
             k,
-            [-2.5e-310 * x, f64::INFINITY, 1.0 / x],
+            [-2.5e-310 * x, f64::INFINITY, 1.0 / x, 3.0e-7 * x, -x],
         )
     }
 
@@ -903,7 +955,7 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.starts_with(&format!("{CURVE_HEADER}\n")) && text.ends_with('\n'));
         assert_eq!(text.lines().count(), 4);
-        assert!(text.lines().all(|l| l.split(',').count() == 19));
+        assert!(text.lines().all(|l| l.split(',').count() == 21));
         let read = read_curve(&path).unwrap();
         assert_eq!(read.len(), 3);
         for (k, p) in read.iter().enumerate() {
@@ -948,11 +1000,14 @@ mod tests {
     fn reader_reads_files_without_the_lateral_columns() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("curve.csv");
-        let old_header = CURVE_HEADER.replace(",sigma_r,eta_measured,hoop_strain", "");
+        let old_header = CURVE_HEADER.replace(
+            ",sigma_r,eta_measured,hoop_strain,draped_volume,eps_v_specimen",
+            "",
+        );
         assert_eq!(old_header.split(',').count(), 16);
         let point = awkward_point(2);
         let line = point.csv_line();
-        let old_row = line.rsplitn(4, ',').nth(3).unwrap();
+        let old_row = line.rsplitn(6, ',').nth(5).unwrap();
         std::fs::write(&path, format!("{old_header}\n{old_row}\n")).unwrap();
         let read = read_curve(&path).unwrap();
         assert_eq!(read.len(), 1);
@@ -1114,6 +1169,7 @@ mod tests {
             h0: 0.2,
             v0: 0.002,
             sigma_0: 1e5,
+            draped0: 0.0,
         };
         let (height, volume) = (0.2, 0.002);
         let area = lateral_area(volume, height);

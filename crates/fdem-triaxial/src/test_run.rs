@@ -214,6 +214,12 @@ pub struct ConsolidationResult {
     /// Lateral stress the membrane applies (measured from its contacts with the
     /// particles) over sigma_0 at the end.
     pub lateral_stress_ratio: f64,
+    /// Volumetric strain of the consolidation at its end (eq 13 from its start).
+    pub eps_v: f64,
+    /// The specimen's own part of it, inside the envelope of its outermost particles;
+    /// `eps_v - eps_v_specimen` is the membrane's penetration into the surface voids
+    /// (docs/TRIAXIAL.md, "Membrane penetration").
+    pub eps_v_specimen: f64,
     /// Relative energy-balance error at the end of consolidation (the balance is rebased
     /// at the start of each phase).
     pub energy_balance_error: f64,
@@ -327,6 +333,8 @@ fn consolidation_numbers(r: &ConsolidationResult) -> Vec<f64> {
         r.volume_rate,
         r.max_overshoot,
         r.lateral_stress_ratio,
+        r.eps_v,
+        r.eps_v_specimen,
         r.energy_balance_error,
         r.cost.steps as f64,
         r.cost.simulated_time,
@@ -345,16 +353,19 @@ fn restore_consolidation(r: &mut ConsolidationResult, n: &[f64]) -> Result<(), S
         volume,
         overshoot,
         lateral,
+        eps_v,
+        eps_v_specimen,
         balance,
         steps,
         time,
         wall,
         cpu,
-    ] = <[f64; 12]>::try_from(n).map_err(|_| "section `test.consolidation` is not a result")?;
+    ] = <[f64; 14]>::try_from(n).map_err(|_| "section `test.consolidation` is not a result")?;
     r.reached = reached != 0.0;
     (r.stress_ratio, r.unbalanced_force, r.kinetic_ratio) = (stress, unbalanced, kinetic);
     (r.volume_rate, r.max_overshoot) = (volume, overshoot);
     (r.lateral_stress_ratio, r.energy_balance_error) = (lateral, balance);
+    (r.eps_v, r.eps_v_specimen) = (eps_v, eps_v_specimen);
     r.cost = PhaseCost {
         steps: steps as u64,
         simulated_time: time,
@@ -592,7 +603,16 @@ impl Run<'_> {
                 membrane_radial_force(c.model().node_contacts(), self.model.membrane_body())
             }),
             hoop_strain: self.hoop_strain(),
+            draped_volume: self.draped_volume(),
         }
+    }
+
+    /// The membrane's draped volume with the specimen's largest simulated diameter as
+    /// the window: the widest surface void the sheet can sink into is between particles
+    /// about that far apart (docs/TRIAXIAL.md, "Membrane penetration").
+    fn draped_volume(&self) -> f64 {
+        self.model
+            .draped_volume(self.prepared.spec.largest_simulated_size())
     }
 
     /// Mean hoop strain of the membrane's free rings (all but the two held by the
@@ -1059,7 +1079,7 @@ impl Equilibrium {
             steps,
             ramp: [r.t_start, r.ramp_time, r.start_pressure, r.sigma_0],
             last_volume: [self.last_volume.0, self.last_volume.1],
-            reference: [self.reference.h0, self.reference.v0],
+            reference: [self.reference.h0, self.reference.v0, self.reference.draped0],
         }
     }
 }
@@ -1187,7 +1207,8 @@ fn start_consolidation(
         run.sigma_0,
     ];
     let (height, volume) = (run.model.height(), run.model.volume());
-    let watch = equilibrium_watch(run, ramp, [height, volume], [ramp[0], volume]);
+    let draped = run.draped_volume();
+    let watch = equilibrium_watch(run, ramp, [height, volume, draped], [ramp[0], volume]);
     run.model.set_pressure(watch.ramp.at(watch.ramp.t_start));
     run.model
         .sim
@@ -1207,7 +1228,7 @@ fn start_consolidation(
 fn equilibrium_watch(
     run: &Run<'_>,
     [t_start, ramp_time, start_pressure, sigma_0]: [f64; 4],
-    [h0, v0]: [f64; 2],
+    [h0, v0, draped0]: [f64; 3],
     last_volume: [f64; 2],
 ) -> Equilibrium {
     let spec = &run.prepared.spec;
@@ -1222,6 +1243,7 @@ fn equilibrium_watch(
             h0,
             v0,
             sigma_0: run.sigma_0,
+            draped0,
         },
         strain_rate: spec.loading_velocity() / spec.height,
         last_volume: (last_volume[0], last_volume[1]),
@@ -1261,6 +1283,7 @@ fn check_equilibrium(
     let result = &mut summary.consolidation;
     result.stress_ratio = point.sigma_a / run.sigma_0;
     result.lateral_stress_ratio = point.sigma_r / run.sigma_0;
+    (result.eps_v, result.eps_v_specimen) = (point.eps_v, point.eps_v_specimen);
     result.unbalanced_force = m.unbalanced_force;
     result.kinetic_ratio = if stored > 0.0 {
         e.kinetic / stored
@@ -1343,7 +1366,7 @@ fn shear(
         Some(Stage::Shear {
             steps,
             t0,
-            reference: [h0, v0],
+            reference: [h0, v0, draped0],
             next_output,
         }) => {
             let mut tracker = PeakTracker::new();
@@ -1357,6 +1380,7 @@ fn shear(
                     h0,
                     v0,
                     sigma_0: run.sigma_0,
+                    draped0,
                 },
                 tracker,
                 next_output,
@@ -1409,7 +1433,7 @@ fn shear(
             let stage = Stage::Shear {
                 steps,
                 t0,
-                reference: [reference.h0, reference.v0],
+                reference: [reference.h0, reference.v0, reference.draped0],
                 next_output: curve.next_output,
             };
             if let Err(e) = run.checkpoint(summary, stage, points, peak.as_ref(), started, stopping)
@@ -1445,6 +1469,7 @@ fn start_shear(
         h0: run.model.height(),
         v0: run.model.volume(),
         sigma_0: run.sigma_0,
+        draped0: run.draped_volume(),
     };
     let mut curve = ShearCurve {
         writer: CurveWriter::new(&path).map_err(io(&path))?,

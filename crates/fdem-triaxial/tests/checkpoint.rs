@@ -5,7 +5,7 @@
 use fdem_solver::ParticleModel;
 use fdem_triaxial::{
     CHECKPOINT_FILE, PreparedSpecimen, Silent, SilentTest, TestObserver, TestOptions, TestPhase,
-    TestStatus, TriaxialError, prepare, quick_spec, run_test,
+    TestStatus, TriaxialError, checkpoint_progress, prepare, quick_spec, run_test,
 };
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -77,7 +77,10 @@ fn stop_twice_and_compare(prepared: &PreparedSpecimen) {
     let first = run_test(prepared, &options(&parts, true), &mut stop, &never).unwrap();
     assert_eq!(first.status, "interrupted");
     assert!(first.consolidation.cost.steps < reference.consolidation.cost.steps);
-    assert!(parts.join(CHECKPOINT_FILE).exists());
+    let at = checkpoint_progress(&parts.join(CHECKPOINT_FILE)).unwrap();
+    assert_eq!(at.phase, TestPhase::Consolidation);
+    assert_eq!(at.steps, first.consolidation.cost.steps);
+    assert!(at.wall_seconds > 0.0 && at.dt > 0.0);
     // Resumed, then stopped in shear, halfway.
     let mut stop = StopAt {
         phase: TestPhase::Shear,
@@ -86,6 +89,9 @@ fn stop_twice_and_compare(prepared: &PreparedSpecimen) {
     let second = run_test(prepared, &options(&parts, true), &mut stop, &never).unwrap();
     assert_eq!(second.status, "interrupted");
     assert!(second.shear.steps > 0 && second.shear.steps < reference.shear.steps);
+    let at = checkpoint_progress(&parts.join(CHECKPOINT_FILE)).unwrap();
+    assert_eq!((at.phase, at.steps), (TestPhase::Shear, second.shear.steps));
+    assert_eq!(prepared.spec.shear_steps(at.dt), reference.plan.shear_steps);
     // Resumed to the end.
     let last = run_test(prepared, &options(&parts, true), &mut SilentTest, &never).unwrap();
     assert_eq!(last.status, "completed");
