@@ -282,7 +282,9 @@ pub fn parabola_fit(values: &[f64]) -> Vec<f64> {
         }
         det(a) / d
     });
-    (0..n).map(|k| c[0] + c[1] * x(k) + c[2] * x(k) * x(k)).collect()
+    (0..n)
+        .map(|k| c[0] + c[1] * x(k) + c[2] * x(k) * x(k))
+        .collect()
 }
 
 /// The value `pick` chooses (the largest or the smallest) within `reach = [around,
@@ -303,7 +305,10 @@ pub fn filter_grid(
         let row = &values[k * around..(k + 1) * around];
         for j in 0..around {
             by_row[k * around + j] = (1..=wrap).fold(row[j], |m, d| {
-                pick(pick(m, row[(j + d) % around]), row[(j + around - d) % around])
+                pick(
+                    pick(m, row[(j + d) % around]),
+                    row[(j + around - d) % around],
+                )
             });
         }
     }
