@@ -596,14 +596,18 @@ impl ContactModel {
         Ok(())
     }
 
-    /// Lets a contact deeper than half the depth limit grow the limit, up to `cap` (m),
-    /// instead of stopping the evaluation; `None` (the default) keeps the limit fixed.
+    /// Lets a contact deeper than half the depth limit, or a node moving farther than
+    /// half of it relative to a solid face or wall in one step, grow the limit, up to
+    /// `cap` (m), instead of stopping the evaluation; `None` (the default) keeps the limit
+    /// fixed.
     ///
     /// The stiff vertex contacts of angular particles press deeper as the stress grows,
-    /// and how deep is known only from the run. When a contact reaches half the limit,
-    /// [`ContactModel::add_forces`] sets the limit to [`DEPTH_LIMIT_GROWTH`] times that
-    /// depth (at most `cap`), rebuilds the broad phase and evaluates the step again; only
-    /// a contact deeper than half of `cap` stops it. Contacts shallower than half the old
+    /// and how deep (or how fast a particle pops out of a wedge) is known only from the
+    /// run. When a contact reaches half the limit, [`ContactModel::add_forces`] sets the
+    /// limit to [`DEPTH_LIMIT_GROWTH`] times that depth (at most `cap`), rebuilds the
+    /// broad phase and evaluates the step again; a displacement past the tunnelling reach
+    /// against solids ([`StepReach`]) grows it likewise. Only a depth or displacement
+    /// above half of `cap` stops it. Contacts shallower than half the old
     /// limit are the same with either limit (the nearest face behind a node is the one
     /// within the old window), so the growth changes the candidate lists' cost, not the
     /// forces. `cap` must stay well below the particles' thickness (see
@@ -624,6 +628,24 @@ impl ContactModel {
         let cap = self.depth_limit_cap?;
         let grown = (DEPTH_LIMIT_GROWTH * depth).min(cap);
         (grown > self.depth_limit && depth <= TUNNELLING_FRACTION * grown).then_some(grown)
+    }
+
+    /// The depth limit that lets the evaluation go on past error `e`, when the cap allows
+    /// one: a contact deeper than half the limit needs the limit above twice its depth, a
+    /// node moving farther than half the limit relative to a solid face or wall in one
+    /// step (or the fastest node's bound for pairs outside the candidate lists) needs it
+    /// above twice that displacement (the narrow phase then still sees the contact it
+    /// could make); both grow it to [`DEPTH_LIMIT_GROWTH`] times the length.
+    fn grown_for(&self, e: &ContactError) -> Option<f64> {
+        match *e {
+            ContactError::PenetrationTooDeep { depth, .. } => self.grown_depth_limit(depth),
+            ContactError::Tunnelling {
+                displacement,
+                scale: TunnellingScale::DepthLimit,
+                ..
+            } => self.grown_depth_limit(displacement),
+            _ => None,
+        }
     }
 
     /// Spring and dashpot coefficients of surface node `k` (index into
@@ -885,21 +907,28 @@ impl ContactModel {
         check_step(time, dt)?;
         self.check_lengths(positions, velocities, forces)?;
 
-        // Pass 1: finiteness, Verlet-skin drift, fastest node.
+        // Pass 1: finiteness, Verlet-skin drift, fastest node; a fastest node too fast for
+        // the depth limit grows it (within its cap).
         let scan = self.scan(positions, velocities);
-        let v_max = self.check_scan(&scan, positions, velocities, dt)?;
+        let v_max = match self.check_scan(&scan, positions, velocities, dt) {
+            Err(e) if let Some(grown) = self.grown_for(&e) => {
+                self.depth_limit = grown;
+                self.rebuild_requested = true;
+                scan.max_speed2.sqrt()
+            }
+            result => result?,
+        };
         let mut rebuilt = self.rebuild_if_due(positions, scan.max_drift2);
         self.update_geometry(positions, time);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
-        // contact too deep for the depth limit grows it (within its cap) and the pass runs
-        // again on the new candidate lists.
+        // contact too deep for the depth limit, or a node moving too far relative to a
+        // solid face or wall, grows it (within its cap) and the pass runs again on the new
+        // candidate lists.
         loop {
             let guards = self.guards(v_max, dt);
             match self.narrow_phase(positions, velocities, dt, guards) {
-                Err(ContactError::PenetrationTooDeep { depth, .. })
-                    if let Some(grown) = self.grown_depth_limit(depth) =>
-                {
+                Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
                     rebuilt |= self.rebuild_if_due(positions, scan.max_drift2);

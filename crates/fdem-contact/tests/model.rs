@@ -532,6 +532,51 @@ fn tunnelling_reach_is_the_depth_limit_against_solids_and_the_margin_against_she
 }
 
 #[test]
+fn a_node_too_fast_for_the_depth_limit_grows_it_within_its_cap() {
+    // The pair of the test above at 2.4 margins relative per step, the depth limit at 4
+    // margins (a reach of 2 against solids): with a cap of 10 margins the limit grows to
+    // three times the displacement and the forces are those of a model built with that
+    // limit; with a cap of 4.4 margins (half of it below the displacement) the step is
+    // refused and nothing changes.
+    let assembly = overlapping_pair(&mut rng(11), 1, 0.01, 0.0);
+    let n = assembly.n_nodes();
+    let dt = 1e-6;
+    let build = |cap: Option<f64>| {
+        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+        let margin = model.margin();
+        model.set_depth_limit(4.0 * margin).unwrap();
+        model.set_depth_limit_cap(cap.map(|c| c * margin)).unwrap();
+        (model, margin)
+    };
+    let (_, margin) = build(None);
+    let v = approach(&assembly, 1.2 * margin, dt);
+    let evaluate = |model: &mut ContactModel| {
+        let mut f = vec![[0.0; 3]; n];
+        let report = model.add_forces(&assembly.nodes, &v, 0.0, dt, &mut f);
+        (report, f)
+    };
+    let (mut grown, _) = build(Some(10.0));
+    let (report, f_grown) = evaluate(&mut grown);
+    assert!(report.unwrap().rebuilt);
+    let limit = grown.depth_limit();
+    assert!(
+        (limit - DEPTH_LIMIT_GROWTH * 2.4 * margin).abs() < 0.05 * limit,
+        "{limit}"
+    );
+    let (mut fixed, _) = build(None);
+    fixed.set_depth_limit(limit).unwrap();
+    let (_, f_fixed) = evaluate(&mut fixed);
+    assert_eq!(f_grown, f_fixed);
+
+    let (mut capped, _) = build(Some(4.4));
+    let (err, f) = evaluate(&mut capped);
+    let msg = tunnelling_on_scale(err.unwrap_err(), TunnellingScale::DepthLimit);
+    assert!(msg.contains("enlarge the depth limit"), "{msg}");
+    assert!(f.iter().all(|x| *x == [0.0; 3]), "nothing added on error");
+    assert_eq!(capped.depth_limit(), 4.0 * margin);
+}
+
+#[test]
 fn tunnelling_guard_watches_walls() {
     let surface = ContactSurface {
         triangles: vec![],

@@ -21,14 +21,14 @@ use fdem_solver::{
     StepBound, TimeStep, VerletWork, WallId,
 };
 
-/// Default depth limit of the test's contacts, in contact margins (`[contact]
-/// depth_limit` overrides it). Under the confining stress, vertex nodes of the angular
-/// particles carry large forces on small control areas and press deeper than half a
-/// margin while moving slowly, and runs with the depth limit at one margin stopped on
-/// such genuine contacts (docs/TRIAXIAL.md, "Contact depth limit"). Two margins let
-/// contacts reach one margin (a quarter of the shortest surface edge with the default
-/// margin), with room above the deepest contacts the test has measured (same section).
-pub const TEST_DEPTH_LIMIT_MARGINS: f64 = 2.0;
+/// Default starting depth limit of the test's contacts, in contact margins (`[contact]
+/// depth_limit` overrides it). The limit grows, up to [`TEST_DEPTH_LIMIT_CAP_DIAMETERS`],
+/// when a contact passes half of it or a node moves farther than half of it relative to a
+/// particle or platen in one step ([`fdem_contact::ContactModel::set_depth_limit_cap`]),
+/// and contacts within half the limit are the same with any larger one, so the start sets
+/// the cost, not the result: candidate boxes are enlarged by skin plus depth limit. Half
+/// a margin is two skins; measured in docs/TRIAXIAL.md ("A depth limit that grows").
+pub const TEST_DEPTH_LIMIT_MARGINS: f64 = 0.5;
 
 /// The largest depth limit of the test's contacts, in smallest particle diameters: a
 /// contact deeper than half the depth limit grows the limit up to this cap
