@@ -7,8 +7,8 @@ use crate::cost::{peak_memory, reset_peak_memory};
 use crate::metrics::{PeakContacts, peak_contacts};
 use crate::{RunDef, StudyError};
 use fdem_triaxial::{
-    Cached, Observer, PreparedSpecimen, TestObserver, TestOptions, TestPhase, TestSummary,
-    TriaxialError, prepare, run_test, specimen_time_step,
+    Cached, CheckpointProgress, Observer, PreparedSpecimen, TestObserver, TestOptions, TestPhase,
+    TestSummary, TriaxialError, prepare, run_test, specimen_time_step,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -319,18 +319,27 @@ fn resumed_seconds(
         return Ok(seconds_per_step * steps as f64);
     };
     let at = fdem_triaxial::checkpoint_progress(&path)?;
-    let shear = run.spec.shear_steps(at.dt);
-    let left = match at.phase {
+    // The test is about two thirds of a run's steps, as for a prepared run.
+    let left = steps_left(&at, run.spec.shear_steps(at.dt), steps * 2 / 3);
+    Ok(pace(&at, seconds_per_step) * left as f64)
+}
+
+/// The steps a test resumed from `at` has left: the shear's rest, or in consolidation
+/// the plan's `test_steps` less those done, and at least the whole shear (`shear`).
+fn steps_left(at: &CheckpointProgress, shear: u64, test_steps: u64) -> u64 {
+    match at.phase {
         TestPhase::Shear => shear.saturating_sub(at.steps),
-        // At least the shear; consolidation as the plan has it, less what is done.
-        TestPhase::Consolidation => shear.max(steps.saturating_sub(at.steps)),
-    };
-    let pace = if at.steps > 0 && at.wall_seconds > 0.0 {
+        TestPhase::Consolidation => shear.max(test_steps.saturating_sub(at.steps)),
+    }
+}
+
+/// Wall seconds per step of the checkpoint's phase so far, or `fallback` before any.
+fn pace(at: &CheckpointProgress, fallback: f64) -> f64 {
+    if at.steps > 0 && at.wall_seconds > 0.0 {
         at.wall_seconds / at.steps as f64
     } else {
-        seconds_per_step
-    };
-    Ok(pace * left as f64)
+        fallback
+    }
 }
 
 /// The shear steps of `run` at its particles' stable step (before any correction).
@@ -680,4 +689,35 @@ fn record_of(
             None
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(phase: TestPhase, steps: u64, wall_seconds: f64) -> CheckpointProgress {
+        CheckpointProgress {
+            phase,
+            steps,
+            dt: 1e-5,
+            wall_seconds,
+        }
+    }
+
+    /// A resumed run is estimated from its own checkpoint: the rest of its shear, or in
+    /// consolidation the plan's test steps less those done and at least the shear, at the
+    /// pace its phase has had.
+    #[test]
+    fn a_resumed_run_is_estimated_at_its_own_pace() {
+        let shear = at(TestPhase::Shear, 100, 20.0);
+        assert_eq!(steps_left(&shear, 250, 1000), 150);
+        assert_eq!(steps_left(&at(TestPhase::Shear, 300, 1.0), 250, 1000), 0);
+        assert_eq!(pace(&shear, 1.0), 0.2);
+        let early = at(TestPhase::Consolidation, 100, 5.0);
+        assert_eq!(steps_left(&early, 250, 1000), 900);
+        let late = at(TestPhase::Consolidation, 900, 5.0);
+        assert_eq!(steps_left(&late, 250, 1000), 250);
+        // Before its first step a phase has no pace of its own.
+        assert_eq!(pace(&at(TestPhase::Consolidation, 0, 0.0), 0.3), 0.3);
+    }
 }
