@@ -249,7 +249,12 @@ fn progress_line(status: &TestStatus, pace: &Pace, state: &str) -> String {
             TestPhase::Consolidation => "at most ",
             TestPhase::Shear => "about ",
         };
-        line += &format!("; {rate:.3} s/step here, {bound}{} left", duration(left));
+        let pace = if rate >= 0.1 {
+            format!("{rate:.2} s/step")
+        } else {
+            format!("{:.3} ms/step", 1e3 * rate)
+        };
+        line += &format!("; {pace} here, {bound}{} left", duration(left));
     }
     line
 }
