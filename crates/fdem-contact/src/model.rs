@@ -337,6 +337,9 @@ pub struct ContactModel {
     kernel: ProjectionKernel,
     coefficients: Vec<NodeCoefficients>,
     masses: Vec<f64>,
+    /// The masses of the step bound per surface node: the lumped masses or those of
+    /// [`ContactModel::set_bound_masses`].
+    bound_masses: Vec<f64>,
     stable: Option<StableStep>,
     broad: BroadPhase,
     rebuild_requested: bool,
@@ -356,6 +359,35 @@ pub struct ContactModel {
     evaluations: u64,
 }
 
+/// The lightest surface node of each body, then the two lightest bodies: a node's
+/// counterpart is the lightest body other than its own. Returns, per body, the mass of
+/// that counterpart (kg; infinite without another body).
+fn counterpart_mass(surface: &ContactSurface, masses: &[f64]) -> impl Fn(u32) -> f64 {
+    let mut lightest: std::collections::BTreeMap<u32, f64> = Default::default();
+    for (&body, &m) in surface.node_body.iter().zip(masses) {
+        let e = lightest.entry(body).or_insert(f64::INFINITY);
+        *e = e.min(m);
+    }
+    let mut by_mass: Vec<(f64, u32)> = lightest.iter().map(|(&b, &m)| (m, b)).collect();
+    by_mass.sort_by(|a, b| a.0.total_cmp(&b.0));
+    by_mass.truncate(2);
+    move |body: u32| match by_mass.as_slice() {
+        [(m, b), ..] if *b != body => *m,
+        [_, (m, _), ..] => *m,
+        _ => f64::INFINITY,
+    }
+}
+
+/// A node's stiffer spring (the larger of `k_n`, `k_s`) and the damping ratio that goes
+/// with it.
+fn stiffer_spring(params: &ContactParams, c: &NodeCoefficients) -> (f64, f64) {
+    if c.tangential_stiffness > c.normal_stiffness {
+        (c.tangential_stiffness, params.tangential_damping_ratio())
+    } else {
+        (c.normal_stiffness, params.damping)
+    }
+}
+
 /// The smallest spring-dashpot bound over the surface nodes (see
 /// [`ContactModel::stable_time_step`]); `masses` per surface node.
 fn stable_step(
@@ -364,30 +396,60 @@ fn stable_step(
     coefficients: &[NodeCoefficients],
     masses: &[f64],
 ) -> Option<StableStep> {
-    // The lightest surface node of each body, then the two lightest bodies: a node's
-    // counterpart is the lightest body other than its own.
-    let mut lightest: std::collections::BTreeMap<u32, f64> = Default::default();
-    for (&body, &m) in surface.node_body.iter().zip(masses) {
-        let e = lightest.entry(body).or_insert(f64::INFINITY);
-        *e = e.min(m);
-    }
-    let mut by_mass: Vec<(f64, u32)> = lightest.iter().map(|(&b, &m)| (m, b)).collect();
-    by_mass.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let other = |body: u32| match by_mass.as_slice() {
-        [(m, b), ..] if *b != body => *m,
-        [_, (m, _), ..] => *m,
-        _ => f64::INFINITY,
-    };
-    let (beta_n, beta_s) = (params.damping, params.tangential_damping_ratio());
+    let other = counterpart_mass(surface, masses);
     let mut stable: Option<StableStep> = None;
     for (k, (&node, c)) in surface.surface_nodes.iter().zip(coefficients).enumerate() {
         let body = surface.node_body[k];
         let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
-        let (stiffness, damping_ratio) = if c.tangential_stiffness > c.normal_stiffness {
-            (c.tangential_stiffness, beta_s)
-        } else {
-            (c.normal_stiffness, beta_n)
-        };
+        let (stiffness, damping_ratio) = stiffer_spring(params, c);
+        let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
+        if stable.is_none_or(|s| dt < s.time_step) {
+            stable = Some(StableStep {
+                time_step: dt,
+                node,
+                body,
+                stiffness,
+                mass,
+                damping_ratio,
+            });
+        }
+    }
+    stable
+}
+
+/// The smallest bound over the nodes of sheet bodies with both sides of a conformal
+/// contact counted (see [`ContactModel::sheet_stable_time_step`]); `masses` per surface
+/// node. `None` without sheet nodes.
+fn sheet_stable_step(
+    params: &ContactParams,
+    surface: &ContactSurface,
+    coefficients: &[NodeCoefficients],
+    masses: &[f64],
+    sheets: &Sheets,
+) -> Option<StableStep> {
+    let other = counterpart_mass(surface, masses);
+    // The stiffest spring of a node that is not on a sheet: one such node pressing a
+    // sheet face at its corner puts all of it on the corner node.
+    let counterpart = surface
+        .node_body
+        .iter()
+        .zip(coefficients)
+        .filter(|(b, _)| !sheets.is_sheet(**b))
+        .map(|(_, c)| stiffer_spring(params, c).0)
+        .fold(0.0, f64::max);
+    let mut stable: Option<StableStep> = None;
+    for (k, (&node, c)) in surface.surface_nodes.iter().zip(coefficients).enumerate() {
+        let body = surface.node_body[k];
+        if !sheets.is_sheet(body) {
+            continue;
+        }
+        let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
+        let (own, damping_ratio) = stiffer_spring(params, c);
+        // Its own spring against the face it touches, plus the springs of the other
+        // surface's nodes pressing the faces around it: at most one node's worth of the
+        // other surface's area per node of the sheet (the weights of a node's faces sum to
+        // its share of their area), or the stiffest single node at a face corner.
+        let stiffness = own + own.max(counterpart);
         let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
         if stable.is_none_or(|s| dt < s.time_step) {
             stable = Some(StableStep {
@@ -464,6 +526,7 @@ impl ContactModel {
             depth_limit_cap: None,
             kernel: ProjectionKernel::default(),
             coefficients,
+            bound_masses: node_masses.clone(),
             masses: node_masses,
             stable,
             broad: BroadPhase::default(),
@@ -679,6 +742,28 @@ impl ContactModel {
         self.stable
     }
 
+    /// The bound of the sheet nodes ([`ContactModel::set_sheet_bodies`]) with both sides of
+    /// a conformal contact counted; `None` without sheets.
+    ///
+    /// A sheet wraps the particles and drapes onto them: a node of it touches a particle's
+    /// face with its own spring while the particle's nodes press the faces around it with
+    /// theirs. Their sum on the node is at most its own stiffness plus the larger of that
+    /// and the stiffest single node of another body (Gershgorin's bound on the row: the
+    /// weights of the nodes pressing its faces sum to at most one node's worth of area,
+    /// unless one node larger than its share sits at a face corner). The per-node bound of
+    /// [`ContactModel::stable_time_step`] counts one spring; with light sheet nodes against
+    /// heavy (rigid) particles and a soft sheet whose own elements do not set the step,
+    /// the second spring decides (docs/TRIAXIAL.md, "Time step").
+    pub fn sheet_stable_time_step(&self) -> Option<StableStep> {
+        sheet_stable_step(
+            &self.params,
+            &self.surface,
+            &self.coefficients,
+            &self.bound_masses,
+            &self.sheets,
+        )
+    }
+
     /// Recomputes [`ContactModel::stable_time_step`] with `masses` (per global node, kg) in
     /// place of the lumped masses: for a node of a rigid body, the body's effective mass
     /// at that node. The dashpots keep the lumped masses (eq 3).
@@ -705,6 +790,7 @@ impl ContactModel {
             bound.push(mass);
         }
         self.stable = stable_step(&self.params, &self.surface, &self.coefficients, &bound);
+        self.bound_masses = bound;
         Ok(())
     }
 

@@ -284,3 +284,150 @@ fn a_new_contact_deeper_than_a_step_can_reach_is_a_fold_artefact() {
     );
     assert!(r.max_depth > 2e-3);
 }
+
+/// A flat sheet (body 1, light nodes) draped on a flat particle face (body 0, heavy
+/// nodes) that pokes `depth` through it: every sheet node is behind the particle's face
+/// and every particle node behind the sheet's, the two-sided contact of a membrane
+/// pressed onto a grain. The particle's grid is shifted by `shift` cells so that its
+/// nodes press the sheet's faces off their edges.
+fn draped(depth: f64, shift: [f64; 2]) -> (ContactModel, Vec<[f64; 3]>, usize) {
+    let grid = |n: i32, offset: [f64; 2], z: f64| -> Vec<[f64; 3]> {
+        let mut v = Vec::new();
+        for i in -n..=n {
+            for j in -n..=n {
+                v.push([
+                    (i as f64 + offset[0]) * CELL,
+                    (j as f64 + offset[1]) * CELL,
+                    z,
+                ]);
+            }
+        }
+        v
+    };
+    // Triangles of a (2n+1)^2 grid starting at node `first`, normals along `up` (+-z).
+    let triangles = |n: i32, first: usize, up: bool| -> Vec<[usize; 3]> {
+        let w = (2 * n + 1) as usize;
+        let id = |i: usize, j: usize| first + i * w + j;
+        let mut t = Vec::new();
+        for i in 0..w - 1 {
+            for j in 0..w - 1 {
+                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                if up {
+                    t.extend([[a, b, c], [a, c, d]]);
+                } else {
+                    t.extend([[a, c, b], [a, d, c]]);
+                }
+            }
+        }
+        t
+    };
+    // The particle: its face at z = depth, outward normal +z.
+    let particle = grid(HALF, shift, depth);
+    let sheet = grid(HALF, [0.0, 0.0], 0.0);
+    let first_sheet = particle.len();
+    let mut tris = triangles(HALF, 0, true);
+    let n_particle_tris = tris.len();
+    // The sheet's normals point to the particle side (-z): the particle lies below it.
+    tris.extend(triangles(HALF, first_sheet, false));
+    let nodes: Vec<[f64; 3]> = particle.iter().chain(&sheet).copied().collect();
+    let n = nodes.len();
+    let surface = ContactSurface {
+        triangle_body: (0..tris.len())
+            .map(|t| u32::from(t >= n_particle_tris))
+            .collect(),
+        triangles: tris,
+        surface_nodes: (0..n).collect(),
+        node_body: (0..n).map(|k| u32::from(k >= first_sheet)).collect(),
+        control_areas: vec![CELL * CELL; n],
+    };
+    let masses: Vec<f64> = (0..n)
+        .map(|k| if k >= first_sheet { 1e-3 } else { 1e6 })
+        .collect();
+    let params = ContactParams {
+        damping: 0.0,
+        friction: 0.0,
+        ..ContactParams::default()
+    };
+    let mut model = ContactModel::new(params, surface, vec![], &masses, 0.004).unwrap();
+    model.set_depth_limit(0.02).unwrap();
+    model.set_sheet_bodies(&[1], 0.01).unwrap();
+    (model, nodes, first_sheet)
+}
+
+/// The stiffness of the contact springs on the normal motion of the sheet's interior
+/// nodes (two rings from its edge; the particle and the rest of the sheet held: the
+/// membrane has no free edge where it wraps the grains), by central differences of the
+/// forces of fresh models (no tangential history): `K[i][j] = -d f_z(i) / d z(j)`.
+fn sheet_stiffness(model: &ContactModel, nodes: &[[f64; 3]], first_sheet: usize) -> Vec<Vec<f64>> {
+    let n = nodes.len();
+    let w = (2 * HALF + 1) as usize;
+    let interior = |k: usize| {
+        let (i, j) = ((k - first_sheet) / w, (k - first_sheet) % w);
+        (2..w - 2).contains(&i) && (2..w - 2).contains(&j)
+    };
+    let sheet: Vec<usize> = (first_sheet..n).filter(|&k| interior(k)).collect();
+    let h = 1e-7;
+    let force = |x: &[[f64; 3]]| {
+        let mut f = vec![[0.0; 3]; n];
+        let mut m = model.clone();
+        m.add_forces(x, &vec![[0.0; 3]; n], 0.0, 1e-9, &mut f)
+            .unwrap();
+        f
+    };
+    let mut k = vec![vec![0.0; sheet.len()]; sheet.len()];
+    for (col, &j) in sheet.iter().enumerate() {
+        let (mut up, mut down) = (nodes.to_vec(), nodes.to_vec());
+        up[j][2] += h;
+        down[j][2] -= h;
+        let (fu, fd) = (force(&up), force(&down));
+        for (row, &i) in sheet.iter().enumerate() {
+            k[row][col] = -(fu[i][2] - fd[i][2]) / (2.0 * h);
+        }
+    }
+    k
+}
+
+/// The largest eigenvalue of the symmetric part of `k` (power iteration).
+fn largest_eigenvalue(k: &[Vec<f64>]) -> f64 {
+    let n = k.len();
+    let mut v = vec![1.0; n];
+    let mut lambda = 0.0;
+    for _ in 0..2000 {
+        let w: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| 0.5 * (k[i][j] + k[j][i]) * v[j]).sum())
+            .collect();
+        let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        lambda = norm / v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        v = w.iter().map(|x| x / norm).collect();
+    }
+    lambda
+}
+
+/// The membrane's two-sided contact in the step bound (docs/MODEL.md section 11): a sheet
+/// node's own spring and the particle's nodes pressing its faces act on it together, so
+/// the per-spring bound is exceeded, and the sheet nodes' bound `k_i + max(k_i, k_max)`
+/// covers the measured highest frequency for grids shifted in several ways.
+#[test]
+fn a_draped_sheet_node_feels_both_sides_and_its_bound_covers_them() {
+    for shift in [[0.3, 0.2], [0.5, 0.5], [0.0, 0.0]] {
+        let (model, nodes, first_sheet) = draped(0.2 * CELL, shift);
+        let k = sheet_stiffness(&model, &nodes, first_sheet);
+        let omega2 = largest_eigenvalue(&k) / 1e-3;
+        let per_spring = model.stable_time_step().unwrap().time_step;
+        let sheet = model.sheet_stable_time_step().unwrap().time_step;
+        let (w_spring, w_sheet) = ((2.0 / per_spring).powi(2), (2.0 / sheet).powi(2));
+        assert!(
+            omega2 > 1.3 * w_spring,
+            "shift {shift:?}: omega^2 {omega2:.4e} not above the per-spring {w_spring:.4e}"
+        );
+        assert!(
+            omega2 <= w_sheet * (1.0 + 1e-6),
+            "shift {shift:?}: omega^2 {omega2:.4e} above the sheet bound's {w_sheet:.4e}"
+        );
+        eprintln!(
+            "shift {shift:?}: omega^2 / per-spring {:.3}, / sheet bound {:.3}",
+            omega2 / w_spring,
+            omega2 / w_sheet
+        );
+    }
+}

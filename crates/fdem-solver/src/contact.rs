@@ -49,6 +49,18 @@ impl ContactForces {
         })
     }
 
+    /// The sheet nodes' stable step with both sides of a conformal contact counted
+    /// ([`ContactModel::sheet_stable_time_step`]); `None` without sheets.
+    pub fn sheet_stable_time_step(&self) -> Option<StepBound> {
+        self.model.sheet_stable_time_step().map(|s| StepBound {
+            dt: s.time_step,
+            source: format!(
+                "contact on the sheet, two-sided: body {}, node {}",
+                s.body, s.node
+            ),
+        })
+    }
+
     /// Adds the contact forces at `nodes` to `forces` (N) and returns the powers of the
     /// walls (external), the dashpots (damping) and friction sliding over the step.
     pub fn add_forces(

@@ -75,22 +75,28 @@ impl StepBound {
 
     /// The bound of a model: the elastic bound combined with the contact springs' (both
     /// act on the particles' nodes), and each of `others` (the contributions' bounds, such
-    /// as a membrane's elements) combined with the contact springs too, then the smallest
-    /// of these. A contribution's nodes may be contact surface nodes (a membrane is
-    /// contacted by the particles it wraps), and the contact bound is the smallest over
-    /// all surface nodes, so combining is safe for every contribution; for one whose nodes
-    /// carry no contact it is pessimistic. What [`crate::ModelBuilder::build`] uses.
+    /// as a membrane's elements) combined with the smaller of the contact springs' and the
+    /// sheet nodes' two-sided bound (`sheet_contact`, [`fdem_contact::ContactModel::sheet_stable_time_step`]),
+    /// then the smallest of these. A contribution's nodes may be contact surface nodes (a
+    /// membrane is a sheet, contacted by the particles it wraps), and the contact bound is
+    /// the smallest over all surface nodes, so combining is safe for every contribution;
+    /// for one whose nodes carry no contact it is pessimistic. The sheet's two-sided bound
+    /// counts on its own too (a sheet without a contribution of its own). What
+    /// [`crate::ModelBuilder::build`] uses.
     pub fn of_model(
         elastic: Option<StepBound>,
         contact: Option<StepBound>,
+        sheet_contact: Option<StepBound>,
         others: impl IntoIterator<Item = Option<StepBound>>,
     ) -> Option<StepBound> {
+        let on_others = Self::smallest([contact.clone(), sheet_contact.clone()]);
         let with_contact = |b: Option<StepBound>| match b {
-            Some(b) => Self::combined(Some(b), contact.clone()),
+            Some(b) => Self::combined(Some(b), on_others.clone()),
             None => None,
         };
         Self::smallest(
-            std::iter::once(Self::combined(elastic, contact.clone()))
+            [Self::combined(elastic, contact), sheet_contact]
+                .into_iter()
                 .chain(others.into_iter().map(with_contact)),
         )
     }
@@ -474,16 +480,43 @@ mod tests {
     fn a_model_bound_is_the_smallest_of_the_bounds_each_combined_with_contact() {
         // Elastic 3 with contact 4 gives 2.4; a contribution's 6 with contact 4 gives
         // 24 / sqrt(52) = 3.33: the elastic one sets the bound.
-        let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), [bound(6.0, "m")]);
+        let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), None, [bound(6.0, "m")]);
         assert_eq!(m.unwrap().dt, 2.4);
         // A contribution's 3 with contact 4 is 2.4 too, its 2 with contact 4 is
         // 4 / sqrt(5): below the elastic one.
-        let m = StepBound::of_model(bound(3.0, "e"), bound(4.0, "c"), [bound(2.0, "m"), None]);
+        let m = StepBound::of_model(
+            bound(3.0, "e"),
+            bound(4.0, "c"),
+            None,
+            [bound(2.0, "m"), None],
+        );
         let m = m.unwrap();
         assert!((m.dt - 4.0 / 5f64.sqrt()).abs() < 1e-15, "{}", m.dt);
         assert!(m.source.starts_with('m') && m.source.contains('c'));
         // Without contact the contributions' bounds stand alone.
-        let m = StepBound::of_model(bound(3.0, "e"), None, [bound(2.0, "m")]);
+        let m = StepBound::of_model(bound(3.0, "e"), None, None, [bound(2.0, "m")]);
         assert_eq!(m, bound(2.0, "m"));
+        // The sheet's two-sided 3 is combined with the contribution (6 with 3 gives
+        // 6 / sqrt(5) = 2.68, below the contact's 3.33), not with the elastic bound (which
+        // stays 2.4 and is smaller still).
+        let m = StepBound::of_model(
+            bound(3.0, "e"),
+            bound(4.0, "c"),
+            bound(3.0, "s"),
+            [bound(6.0, "m")],
+        );
+        assert_eq!(m.unwrap().dt, 2.4);
+        let m = StepBound::of_model(
+            bound(30.0, "e"),
+            bound(4.0, "c"),
+            bound(3.0, "s"),
+            [bound(6.0, "m")],
+        );
+        let m = m.unwrap();
+        assert!((m.dt - 6.0 / 5f64.sqrt()).abs() < 1e-15, "{}", m.dt);
+        assert!(m.source.starts_with('m') && m.source.contains('s'));
+        // Alone, the sheet's bound counts as it is.
+        let m = StepBound::of_model(None, None, bound(3.0, "s"), [None]);
+        assert_eq!(m, bound(3.0, "s"));
     }
 }

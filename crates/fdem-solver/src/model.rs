@@ -479,6 +479,9 @@ impl ModelBuilder {
         let bound = StepBound::of_model(
             elastic.stable_time_step(),
             contact.as_ref().and_then(ContactForces::stable_time_step),
+            contact
+                .as_ref()
+                .and_then(ContactForces::sheet_stable_time_step),
             self.parts
                 .contributions
                 .iter()

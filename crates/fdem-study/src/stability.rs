@@ -1,14 +1,14 @@
 //! Stability maps (docs/STABILITY.md): the test model of a small dense packing probed at
-//! multiples of its computed stable step, over the normal penalty and the contact
-//! damping, for rigid, linear and quadratic particles; each run classified by what
-//! stopped it.
+//! multiples of its computed stable step, over the normal penalty, the contact damping
+//! and the membrane's Young's modulus, for rigid, linear and quadratic particles; each
+//! run classified by what stopped it.
 
 use crate::StudyError;
 use fdem_core::fs::write_atomically;
 use fdem_mesh::ElementOrder;
 use fdem_solver::ParticleModel;
 use fdem_triaxial::{
-    Cached, Observer, PreparedSpecimen, StabilityClass, prepare, probe, quick_spec,
+    Cached, Observer, PreparedSpecimen, StabilityClass, prepare, probe, probe_bound, quick_spec,
 };
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -21,7 +21,13 @@ pub const PAPER_MODULUS: f64 = 40e9;
 
 /// The header of `stability.csv`.
 pub const STABILITY_HEADER: &str = "model,order,dt_factor,normal_penalty,damping,class,steps,\
-max_energy_error,max_depth,dt,bound,bound_source";
+max_energy_error,max_depth,dt,bound,bound_source,membrane_modulus";
+
+/// The membrane's Young's modulus of the maps' specimen (Pa): the quick specimen's, and
+/// that of rows written before the membrane was swept.
+pub fn default_membrane_modulus() -> f64 {
+    quick_spec().membrane.youngs_modulus
+}
 
 /// One particle model of a map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,8 +62,43 @@ pub struct MapSpec {
     pub dampings: Vec<f64>,
     /// The damping of the penalty sweep (the paper's).
     pub damping: f64,
+    /// Membrane Young's moduli (Pa) besides the specimen's own, swept at
+    /// [`PAPER_PENALTY`] and `damping`.
+    pub membrane_moduli: Vec<f64>,
     /// Steps of each probe.
     pub steps: u64,
+}
+
+/// One probe of a map: where it lies on every axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapPoint {
+    /// The particle model.
+    pub variant: ModelVariant,
+    /// Normal penalty (N/m^3).
+    pub penalty: f64,
+    /// Contact damping ratio.
+    pub damping: f64,
+    /// The membrane's Young's modulus (Pa).
+    pub membrane_modulus: f64,
+    /// Step over the computed bound.
+    pub factor: f64,
+}
+
+/// A line of the map (model, order, and the bits of penalty, damping and membrane
+/// modulus): everything of a probe but its step factor.
+type LineKey = (String, String, u64, u64, u64);
+
+impl MapPoint {
+    /// The line of the map it lies on, as bits.
+    fn line(&self) -> LineKey {
+        (
+            self.variant.name().to_string(),
+            order_name(self.variant.order).to_string(),
+            self.penalty.to_bits(),
+            self.damping.to_bits(),
+            self.membrane_modulus.to_bits(),
+        )
+    }
 }
 
 const RIGID: ModelVariant = ModelVariant {
@@ -76,7 +117,8 @@ const QUADRATIC: ModelVariant = ModelVariant {
 impl MapSpec {
     /// The default map: rigid, linear and quadratic particles; the step from 0.5 to 2.5
     /// times the bound, finer near 1; the penalty over three decades around the paper's;
-    /// the damping ratio from 0 to 1; 2,000 steps per probe.
+    /// the damping ratio from 0 to 1; a latex membrane (1 MPa) beside the specimen's
+    /// 40 MPa; 2,000 steps per probe.
     pub fn full() -> MapSpec {
         MapSpec {
             variants: vec![RIGID, LINEAR, QUADRATIC],
@@ -84,6 +126,7 @@ impl MapSpec {
             penalties: vec![1.8e9, 1.8e10, 1.8e11, 1.8e12],
             dampings: vec![0.0, 0.2, 0.5, 1.0],
             damping: 0.2,
+            membrane_moduli: vec![1e6],
             steps: 2000,
         }
     }
@@ -97,24 +140,39 @@ impl MapSpec {
             penalties: vec![PAPER_PENALTY],
             dampings: vec![],
             damping: 0.2,
+            membrane_moduli: vec![],
             steps: 1000,
         }
     }
 
     /// Every probe of the map: the penalty sweep at the map's damping, then the damping
-    /// sweep at the paper's penalty (without repeating the point both share).
-    pub fn points(&self) -> Vec<(ModelVariant, f64, f64, f64)> {
-        let mut points = Vec::new();
+    /// sweep at the paper's penalty (without repeating the point both share), then the
+    /// membrane sweep at the paper's penalty and the map's damping; all with the
+    /// specimen's membrane but the last.
+    pub fn points(&self) -> Vec<MapPoint> {
+        let membrane = default_membrane_modulus();
+        let mut lines = Vec::new();
         for &v in &self.variants {
             for &p in &self.penalties {
-                for &f in &self.dt_factors {
-                    points.push((v, p, self.damping, f));
-                }
+                lines.push((v, p, self.damping, membrane));
             }
             for &b in self.dampings.iter().filter(|b| **b != self.damping) {
-                for &f in &self.dt_factors {
-                    points.push((v, PAPER_PENALTY, b, f));
-                }
+                lines.push((v, PAPER_PENALTY, b, membrane));
+            }
+            for &e in self.membrane_moduli.iter().filter(|e| **e != membrane) {
+                lines.push((v, PAPER_PENALTY, self.damping, e));
+            }
+        }
+        let mut points = Vec::new();
+        for (variant, penalty, damping, membrane_modulus) in lines {
+            for &factor in &self.dt_factors {
+                points.push(MapPoint {
+                    variant,
+                    penalty,
+                    damping,
+                    membrane_modulus,
+                    factor,
+                });
             }
         }
         points
@@ -149,17 +207,25 @@ pub struct MapRow {
     pub bound: f64,
     /// What sets the bound.
     pub bound_source: String,
+    /// The membrane's Young's modulus (Pa).
+    pub membrane_modulus: f64,
 }
 
 impl MapRow {
-    fn key(&self) -> (String, String, u64, u64, u64) {
+    /// The line of the map it lies on (as [`MapPoint::line`]).
+    fn line(&self) -> LineKey {
         (
             self.model.clone(),
             self.order.clone(),
-            self.dt_factor.to_bits(),
             self.normal_penalty.to_bits(),
             self.damping.to_bits(),
+            self.membrane_modulus.to_bits(),
         )
+    }
+
+    /// Whether it is the probe of `point`.
+    fn is_at(&self, point: &MapPoint) -> bool {
+        self.line() == point.line() && self.dt_factor.to_bits() == point.factor.to_bits()
     }
 
     /// Whether the probe ran to its end.
@@ -197,7 +263,7 @@ fn csv_text(rows: &[MapRow]) -> String {
     text.push('\n');
     for r in rows {
         text.push_str(&format!(
-            "{},{},{},{:e},{},{},{},{:e},{:e},{:e},{:e},\"{}\"\n",
+            "{},{},{},{:e},{},{},{},{:e},{:e},{:e},{:e},\"{}\",{:e}\n",
             r.model,
             r.order,
             r.dt_factor,
@@ -209,19 +275,23 @@ fn csv_text(rows: &[MapRow]) -> String {
             r.max_depth,
             r.dt,
             r.bound,
-            r.bound_source.replace('"', "'")
+            r.bound_source.replace('"', "'"),
+            r.membrane_modulus
         ));
     }
     text
 }
 
-/// Reads the rows of an earlier (possibly interrupted) map.
+/// Reads the rows of an earlier (possibly interrupted) map; rows written before the
+/// membrane was swept (no `membrane_modulus` column) have the specimen's membrane.
 pub fn read_rows(path: &Path) -> Result<Vec<MapRow>, StudyError> {
     if !path.exists() {
         return Ok(Vec::new());
     }
-    let mut reader =
-        csv::Reader::from_path(path).map_err(|e| StudyError::file(path, e.to_string()))?;
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(path)
+        .map_err(|e| StudyError::file(path, e.to_string()))?;
     let mut rows = Vec::new();
     for record in reader.records() {
         let r = record.map_err(|e| StudyError::file(path, e.to_string()))?;
@@ -249,6 +319,10 @@ pub fn read_rows(path: &Path) -> Result<Vec<MapRow>, StudyError> {
             dt: num(9)?,
             bound: num(10)?,
             bound_source: r.get(11).unwrap_or_default().to_string(),
+            membrane_modulus: match r.get(12) {
+                Some(_) => num(12)?,
+                None => default_membrane_modulus(),
+            },
         });
     }
     Ok(rows)
@@ -256,7 +330,9 @@ pub fn read_rows(path: &Path) -> Result<Vec<MapRow>, StudyError> {
 
 /// Runs every probe of `spec` not yet in `dir/stability.csv`, appending each row as it
 /// finishes (the file is rewritten atomically after every probe, so an interrupted map
-/// keeps what it had); `progress` hears of each probe. Returns every row of the map.
+/// keeps what it had); `progress` hears of each probe. A stored probe is reused only
+/// while the model's computed bound is the one it was run at (a change to the bound
+/// makes its line new). Returns every row of the map.
 pub fn run_map(
     spec: &MapSpec,
     dir: &Path,
@@ -269,15 +345,22 @@ pub fn run_map(
     let mut rows = read_rows(&csv)?;
     let points = spec.points();
     let mut packed: Option<PreparedSpecimen> = None;
-    for (i, &(variant, penalty, damping, factor)) in points.iter().enumerate() {
-        let key = (
-            variant.name().to_string(),
-            order_name(variant.order).to_string(),
-            factor.to_bits(),
-            penalty.to_bits(),
-            damping.to_bits(),
-        );
-        if let Some(done) = rows.iter().find(|r| r.key() == key) {
+    // The current bound of each line, once the line has been looked at.
+    let mut bounds: Vec<(LineKey, f64)> = Vec::new();
+    for (i, point) in points.iter().enumerate() {
+        if packed.is_none() {
+            packed = Some(packing(dir, observer)?);
+        }
+        let prepared = probe_specimen(packed.as_ref().expect("prepared above"), point)?;
+        let bound = match bounds.iter().find(|(l, _)| *l == point.line()) {
+            Some(&(_, b)) => b,
+            None => {
+                let b = probe_bound(&prepared)?.dt;
+                bounds.push((point.line(), b));
+                b
+            }
+        };
+        if let Some(done) = rows.iter().find(|r| r.is_at(point) && r.bound == bound) {
             progress(i, points.len(), done);
             continue;
         }
@@ -286,20 +369,14 @@ pub fn run_map(
                 run: "the stability map".into(),
             });
         }
-        if packed.is_none() {
-            packed = Some(packing(dir, observer)?);
-        }
-        let base = packed.as_ref().expect("prepared above");
-        let mut prepared = base.in_model_and_order(variant.model, variant.order)?;
-        prepared.spec.contact.normal_penalty = penalty;
-        prepared.spec.contact.damping = damping;
-        let outcome = probe(&prepared, factor, spec.steps)?;
+        rows.retain(|r| !r.is_at(point));
+        let outcome = probe(&prepared, point.factor, spec.steps)?;
         let row = MapRow {
-            model: key.0,
-            order: key.1,
-            dt_factor: factor,
-            normal_penalty: penalty,
-            damping,
+            model: point.variant.name().to_string(),
+            order: order_name(point.variant.order).to_string(),
+            dt_factor: point.factor,
+            normal_penalty: point.penalty,
+            damping: point.damping,
             class: outcome.class.name().to_string(),
             steps: outcome.steps,
             max_energy_error: outcome.max_energy_error,
@@ -307,6 +384,7 @@ pub fn run_map(
             dt: outcome.dt,
             bound: outcome.bound,
             bound_source: outcome.bound_source,
+            membrane_modulus: point.membrane_modulus,
         };
         progress(i, points.len(), &row);
         rows.push(row);
@@ -315,23 +393,22 @@ pub fn run_map(
     // Only the rows of this map, in its order.
     let ordered: Vec<MapRow> = points
         .iter()
-        .filter_map(|&(v, p, b, f)| {
-            rows.iter()
-                .find(|r| {
-                    r.key()
-                        == (
-                            v.name().to_string(),
-                            order_name(v.order).to_string(),
-                            f.to_bits(),
-                            p.to_bits(),
-                            b.to_bits(),
-                        )
-                })
-                .cloned()
-        })
+        .filter_map(|p| rows.iter().find(|r| r.is_at(p)).cloned())
         .collect();
     write_atomically(&csv, csv_text(&ordered)).map_err(|e| StudyError::io("writing", &csv, e))?;
     Ok(ordered)
+}
+
+/// The map's packing in the model, penalty, damping and membrane of `point`.
+fn probe_specimen(
+    base: &PreparedSpecimen,
+    point: &MapPoint,
+) -> Result<PreparedSpecimen, StudyError> {
+    let mut prepared = base.in_model_and_order(point.variant.model, point.variant.order)?;
+    prepared.spec.contact.normal_penalty = point.penalty;
+    prepared.spec.contact.damping = point.damping;
+    prepared.spec.membrane.youngs_modulus = point.membrane_modulus;
+    Ok(prepared)
 }
 
 /// `dir/stability.csv`.
@@ -438,7 +515,13 @@ fn map_chart(rows: &[MapRow], spec: &MapSpec, model: &str, path: &Path) -> Resul
         .penalties
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(*p), b.max(*p)));
-    let ours: Vec<&MapRow> = rows.iter().filter(|r| r.model == model).collect();
+    // The penalty and damping sweeps, with the specimen's membrane (the membrane sweep is
+    // in the table).
+    let membrane = default_membrane_modulus();
+    let ours: Vec<&MapRow> = rows
+        .iter()
+        .filter(|r| r.model == model && r.membrane_modulus == membrane)
+        .collect();
     let svg = figure::svg((1200, 520), |root| {
         let (left, right) = root.split_horizontally(600);
         let mut chart = STYLE.chart(
@@ -529,14 +612,19 @@ pub fn write_stability(
     Ok(written)
 }
 
-/// One line of the map: (model, penalty, damping) with its rows.
-type Line<'a> = ((String, f64, f64), Vec<&'a MapRow>);
+/// One line of the map: (model, penalty, damping, membrane modulus) with its rows.
+type Line<'a> = ((String, f64, f64, f64), Vec<&'a MapRow>);
 
 /// The lines of the map.
 fn lines(rows: &[MapRow]) -> Vec<Line<'_>> {
     let mut out: Vec<Line<'_>> = Vec::new();
     for r in rows {
-        let key = (r.model.clone(), r.normal_penalty, r.damping);
+        let key = (
+            r.model.clone(),
+            r.normal_penalty,
+            r.damping,
+            r.membrane_modulus,
+        );
         match out.iter_mut().find(|(k, _)| *k == key) {
             Some((_, v)) => v.push(r),
             None => out.push((key, vec![r])),
@@ -565,9 +653,13 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
          compaction tunnels). Each probe builds the triaxial test's \
          model around it (particles, membrane, platens), sets the step to a multiple of the \
          model's computed stable bound (the elastic bound of each body combined with the \
-         contact springs', or the membrane's if smaller; docs/MODEL.md section 11), applies \
+         contact springs', or the membrane's combined with the smaller of the contact \
+         springs' and the membrane nodes' two-sided contact bound, if smaller; \
+         docs/MODEL.md section 11), applies \
          the full confining pressure at once (a load step that excites every mode) and \
-         runs {} steps with the platens held. Classes: `stable` (every step done, energy \
+         runs {} steps with the platens held. The penalty and damping sweeps use the \
+         specimen's membrane ({:.0} MPa); one more line per model takes a latex-like \
+         membrane at the paper's penalty. Classes: `stable` (every step done, energy \
          balance error at most {:.0} % of its scale), `slow_growth` (done, error between \
          that and the guard's 5 %), `blow_up` (the guard stopped it), `penetration` (a \
          contact deeper than half the depth limit, grown to its cap), `tunnelling` (a node \
@@ -576,6 +668,7 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
          membrane), `non_finite`.\n",
         PAPER_MODULUS / 1e9,
         spec.steps,
+        default_membrane_modulus() / 1e6,
         100.0 * fdem_triaxial::STABLE_ENERGY_ERROR
     );
     let _ = writeln!(d, "## Measured critical step factor\n");
@@ -587,20 +680,21 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
     );
     let _ = writeln!(
         d,
-        "| model | penalty (N/m^3) | damping | last finished | first failed (class) | against the bound | bound (s) | set by |"
+        "| model | penalty (N/m^3) | damping | membrane (MPa) | last finished | first failed (class) | against the bound | bound (s) | set by |"
     );
-    let _ = writeln!(d, "|---|---|---|---|---|---|---|---|");
-    for ((model, p, b), line) in lines(rows) {
+    let _ = writeln!(d, "|---|---|---|---|---|---|---|---|---|");
+    for ((model, p, b, e), line) in lines(rows) {
         let (ok, failed) = critical(&line);
         let failed_class = failed
             .and_then(|f| line.iter().find(|r| r.dt_factor == f))
             .map_or(String::new(), |r| format!(" ({})", r.class));
         let bound = line.first().map_or(f64::NAN, |r| r.bound);
         let source = line.first().map_or("", |r| r.bound_source.as_str());
-        let source: String = source.chars().take(60).collect();
+        let source: String = source.chars().take(90).collect();
         let _ = writeln!(
             d,
-            "| {model} | {p:.1e} | {b} | {} | {}{failed_class} | {} | {bound:.3e} | {source} |",
+            "| {model} | {p:.1e} | {b} | {} | {} | {}{failed_class} | {} | {bound:.3e} | {source} |",
+            e / 1e6,
             ok.map_or("none".into(), |f| format!("{f}")),
             failed.map_or("none".into(), |f| format!("{f}")),
             agreement(ok, failed),
@@ -616,8 +710,10 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
          bounds of a body are combined by Weyl's inequality (a sum of the largest \
          eigenvalues, larger than the largest eigenvalue of the sum), each body's elastic \
          bound comes from a power iteration on that body alone, a rigid body's contact \
-         springs use its effective mass at the node, rotation included, and the membrane's \
-         bound is its stiffest element's. Each of these makes the bound smaller than the \
+         springs use its effective mass at the node, rotation included, the membrane \
+         nodes' contact counts their own spring and at most one node's worth of the \
+         particles' springs pressing their faces (Gershgorin's row bound), and the \
+         membrane's bound is its stiffest element's. Each of these makes the bound smaller than the \
          true limit (conservative), never larger; a failure below the bound would be a \
          bug in the bound, or a failure that is not a step-size instability (penetration \
          under too soft a penalty, tunnelling of a fast transient).\n",
@@ -652,10 +748,14 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
     for (what, factor) in project_safety_factors() {
         let below: Vec<String> = all
             .iter()
-            .filter_map(|((model, p, b), line)| {
+            .filter_map(|((model, p, b, e), line)| {
                 let failed = critical(line).1?;
-                (failed <= factor)
-                    .then(|| format!("{model} at p_n = {p:.1e}, beta = {b} (fails at {failed})"))
+                (failed <= factor).then(|| {
+                    format!(
+                        "{model} at p_n = {p:.1e}, beta = {b}, membrane {} MPa (fails at {failed})",
+                        e / 1e6
+                    )
+                })
             })
             .collect();
         let _ = writeln!(
@@ -696,6 +796,7 @@ mod tests {
             dt: 1e-6,
             bound: 1e-6,
             bound_source: "contact: \"node\" 3".into(),
+            membrane_modulus: 40e6,
         }
     }
 
@@ -727,13 +828,30 @@ mod tests {
         assert_eq!(back[1].class, "blow_up");
         assert_eq!(back[0].dt_factor, 0.9);
         assert_eq!(back[0].bound_source, "contact: 'node' 3");
+        assert_eq!(back[1].membrane_modulus, 40e6);
+        // A map written before the membrane column reads with the specimen's membrane.
+        let old: String = csv_text(&rows)
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string() + "\n")
+            .collect();
+        write_atomically(&path, old).unwrap();
+        let back = read_rows(&path).unwrap();
+        assert_eq!(back[0].bound_source, "contact: 'node' 3");
+        assert_eq!(back[0].membrane_modulus, default_membrane_modulus());
     }
 
     #[test]
     fn the_full_map_sweeps_every_axis() {
         let m = MapSpec::full();
-        let n = m.variants.len() * (m.penalties.len() + m.dampings.len() - 1) * m.dt_factors.len();
+        let lines = m.penalties.len() + m.dampings.len() - 1 + m.membrane_moduli.len();
+        let n = m.variants.len() * lines * m.dt_factors.len();
         assert_eq!(m.points().len(), n);
+        let soft = m
+            .points()
+            .iter()
+            .filter(|p| p.membrane_modulus < 40e6)
+            .count();
+        assert_eq!(soft, m.variants.len() * m.dt_factors.len());
         assert!(
             m.dt_factors.contains(&1.0) && m.dampings.contains(&0.0) && m.dampings.contains(&1.0)
         );

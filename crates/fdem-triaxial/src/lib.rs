@@ -89,7 +89,7 @@ pub use prepare::{
     Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, check_memory, particle_sections,
     preparation_walls, prepare, specimen_time_step, unbalanced_force_ratio,
 };
-pub use probe::{ProbeOutcome, STABLE_ENERGY_ERROR, StabilityClass, probe};
+pub use probe::{ProbeOutcome, STABLE_ENERGY_ERROR, StabilityClass, probe, probe_bound};
 pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SOLID_FRACTION, DENSEST_PACKING, FRACTION_SUM_TOLERANCE,
     MAX_OVERLAP_DEFORMABLE, MAX_OVERLAP_RIGID, ORIGINAL_SIZE, PRESETS, PreparationSection, Preset,

@@ -94,6 +94,15 @@ pub struct ProbeOutcome {
     pub failure: Option<String>,
 }
 
+/// The test model's computed stable bound for `prepared` (what [`probe`] multiplies): a
+/// map compares it with the bound of an earlier probe before reusing that probe.
+///
+/// # Errors
+/// A model that cannot be built.
+pub fn probe_bound(prepared: &PreparedSpecimen) -> Result<fdem_solver::StepBound, TriaxialError> {
+    Ok(TestModel::build(prepared, None)?.sim.bound().clone())
+}
+
 /// Runs the probe: `steps` steps of `dt_factor` times the test model's stable bound.
 ///
 /// # Errors

@@ -49,11 +49,12 @@ pub fn run(args: &StabilityArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut progress = |i: usize, n: usize, row: &fdem_study::stability::MapRow| {
         eprintln!(
-            "[{}/{n}] {} p_n = {:.1e} beta = {} dt = {} x bound: {} after {} steps (energy error {:.1e}; {} elapsed)",
+            "[{}/{n}] {} p_n = {:.1e} beta = {} membrane {} MPa dt = {} x bound: {} after {} steps (energy error {:.1e}; {} elapsed)",
             i + 1,
             row.model,
             row.normal_penalty,
             row.damping,
+            row.membrane_modulus / 1e6,
             row.dt_factor,
             row.class,
             row.steps,
