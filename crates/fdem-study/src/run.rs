@@ -52,8 +52,15 @@ pub struct PhaseRecord {
     pub steps: u64,
     /// Wall-clock seconds.
     pub wall_seconds: f64,
-    /// CPU seconds of all threads (NaN where unknown).
+    /// CPU seconds of all threads (NaN where unknown, written as `null`).
+    #[serde(deserialize_with = "nan_if_null")]
     pub cpu_seconds: f64,
+}
+
+/// Reads a number that JSON holds as `null` where it was NaN (unknown): what serde_json
+/// writes for a NaN, so that a record reads back as it was written.
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 /// The record of one run (`runs/LABEL/run.json`).
@@ -719,5 +726,23 @@ mod tests {
         assert_eq!(steps_left(&late, 250, 1000), 250);
         // Before its first step a phase has no pace of its own.
         assert_eq!(pace(&at(TestPhase::Consolidation, 0, 0.0), 0.3), 0.3);
+    }
+
+    /// A phase whose CPU time is unknown (NaN, written as `null`: a run interrupted before
+    /// its shear) reads back as NaN, so an interrupted study resumes.
+    #[test]
+    fn an_unknown_cpu_time_survives_the_record_round_trip() {
+        let phase = PhaseRecord {
+            steps: 0,
+            wall_seconds: 0.0,
+            cpu_seconds: f64::NAN,
+        };
+        let text = serde_json::to_string(&phase).unwrap();
+        assert!(text.contains("\"cpu_seconds\":null"), "{text}");
+        let back: PhaseRecord = serde_json::from_str(&text).unwrap();
+        assert!(back.cpu_seconds.is_nan() && back.steps == 0);
+        let known: PhaseRecord =
+            serde_json::from_str(r#"{"steps":3,"wall_seconds":1.5,"cpu_seconds":2.5}"#).unwrap();
+        assert_eq!(known.cpu_seconds, 2.5);
     }
 }
