@@ -107,17 +107,17 @@ fn runs_table(d: &mut String, results: &Results) {
     let _ = writeln!(d, "## Runs\n");
     let _ = writeln!(
         d,
-        "| test | model (used) | order | seed | particles | peak eta | eps_a at peak (%) | residual eta | eps_v end (%) | mean F_n (N) | strong / weak (%) | wall (s) | CPU (s) | steps | peak memory (MB) |"
+        "| test | model (used) | order | seed | particles | peak eta | eps_a at peak (%) | residual eta | eps_v end (%) | mean F_n (N) | strong / weak (%) | wall (s) | CPU (s) | steps | peak memory (MB) | energy balance (consolidation / shear) |"
     );
     let _ = writeln!(
         d,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for e in &results.entries {
         let (r, m) = (&e.record, &e.measured.metrics);
         let _ = writeln!(
             d,
-            "| {} | {} ({}) | {} | {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} | {:.1} / {:.1} | {:.0} | {:.0} | {} | {} |",
+            "| {} | {} ({}) | {} | {} | {} | {:.4} | {:.2} | {:.4} | {:.2} | {:.1} | {:.1} / {:.1} | {:.0} | {:.0} | {} | {} | {} |",
             r.test,
             r.model,
             r.model_used,
@@ -138,9 +138,37 @@ fn runs_table(d: &mut String, results: &Results) {
                 "{:.0}",
                 b as f64 / (1u64 << 20) as f64
             )),
+            balance_cell(&e.measured),
         );
     }
     let _ = writeln!(d);
+    let open: Vec<String> = results
+        .entries
+        .iter()
+        .filter(|e| !e.measured.balance_closed())
+        .map(|e| e.record.label.clone())
+        .collect();
+    if !open.is_empty() {
+        let _ = writeln!(
+            d,
+            "**Energy balance not closed** (error above {:.0} % of the phase's energy scale, \
+             marked in bold): {}. Their numbers are shown as measured, but the step was too \
+             large for them (docs/STABILITY.md) and they should be run again.\n",
+            100.0 * fdem_triaxial::STABLE_ENERGY_ERROR,
+            open.join(", ")
+        );
+    }
+}
+
+/// A run's energy balance errors, consolidation / shear, in bold where one does not close.
+fn balance_cell(m: &crate::metrics::Measured) -> String {
+    let [c, s] = m.energy_balance;
+    let text = format!("{c:.1e} / {s:.1e}");
+    if m.balance_closed() {
+        text
+    } else {
+        format!("**{text}**")
+    }
 }
 
 /// The reference's relative seed-to-seed spread of a metric (NaN with one seed).

@@ -56,6 +56,36 @@ pub struct Measured {
     pub metrics: RunMetrics,
     /// The distribution of `F_n / mean(F_n)` at the peak.
     pub histogram: Histogram,
+    /// The energy balance error of the consolidation and of the shear, each over its
+    /// phase's energy scale (`summary.json`; NaN where it does not say).
+    pub energy_balance: [f64; 2],
+}
+
+impl Measured {
+    /// Whether both phases closed their energy balance (error at most
+    /// [`fdem_triaxial::STABLE_ENERGY_ERROR`] of the scale): a run whose balance does not
+    /// close has its numbers reported, and flagged.
+    pub fn balance_closed(&self) -> bool {
+        self.energy_balance
+            .iter()
+            .all(|e| *e <= fdem_triaxial::STABLE_ENERGY_ERROR)
+    }
+}
+
+/// The energy balance errors `[consolidation, shear]` of the run in `dir`, from its
+/// `summary.json` (NaN for what it does not hold).
+fn energy_balance(dir: &Path) -> [f64; 2] {
+    let summary = std::fs::read_to_string(dir.join("summary.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+    let Some(s) = summary else {
+        return [f64::NAN; 2];
+    };
+    [
+        &s["consolidation"]["energy_balance_error"],
+        &s["energy_balance_error"],
+    ]
+    .map(|v| v.as_f64().unwrap_or(f64::NAN))
 }
 
 /// The contact forces at the peak, clustered into particle contacts by `fdem-micro`;
@@ -121,6 +151,7 @@ pub fn measure(dir: &Path, peak: &PeakContacts) -> Result<Measured, StudyError> 
         },
         histogram: peak.histogram.clone(),
         curve,
+        energy_balance: energy_balance(dir),
     })
 }
 

@@ -30,7 +30,7 @@ pub const RUNS_HEADER: &str = "test,h,exact_scaling,model,order,seed,particles,p
 eps_a_peak,residual_eta,eps_v_final,mean_normal_force,strong_share,weak_share,wall_seconds,\
 cpu_seconds,steps,series,model_used,initial_modulus,max_contraction,dilatancy_onset,\
 coordination_number,element_steps,surface_node_steps,peak_memory_mb,preparation_wall_seconds,\
-consolidation_wall_seconds,shear_wall_seconds";
+consolidation_wall_seconds,shear_wall_seconds,energy_balance_consolidation,energy_balance_shear";
 
 /// One finished run with what it measured.
 #[derive(Clone, Debug)]
@@ -259,6 +259,8 @@ pub fn runs_csv(results: &Results) -> String {
             csv_number(r.preparation.wall_seconds),
             csv_number(r.consolidation.wall_seconds),
             csv_number(r.shear.wall_seconds),
+            csv_number(e.measured.energy_balance[0]),
+            csv_number(e.measured.energy_balance[1]),
         ];
         text.push_str(&row.join(","));
         text.push('\n');
