@@ -152,8 +152,10 @@ fn runs_table(d: &mut String, results: &Results) {
         let _ = writeln!(
             d,
             "**Energy balance not closed** (error above {:.0} % of the phase's energy scale, \
-             marked in bold): {}. Their numbers are shown as measured, but the step was too \
-             large for them (docs/STABILITY.md) and they should be run again.\n",
+             marked in bold): {}. Their numbers are shown as measured but are not to be \
+             trusted: the run let energy in (too large a step, docs/STABILITY.md, or a contact \
+             event, docs/TRIAXIAL.md \"Energy balance\"); run them again with a smaller \
+             `test.dt_safety`.\n",
             100.0 * fdem_triaxial::STABLE_ENERGY_ERROR,
             open.join(", ")
         );

@@ -66,10 +66,16 @@ impl Measured {
     /// [`fdem_triaxial::STABLE_ENERGY_ERROR`] of the scale): a run whose balance does not
     /// close has its numbers reported, and flagged.
     pub fn balance_closed(&self) -> bool {
-        self.energy_balance
-            .iter()
-            .all(|e| *e <= fdem_triaxial::STABLE_ENERGY_ERROR)
+        closes(self.energy_balance)
     }
+}
+
+/// Whether every phase's balance error is known and at most
+/// [`fdem_triaxial::STABLE_ENERGY_ERROR`].
+fn closes(balance: [f64; 2]) -> bool {
+    balance
+        .iter()
+        .all(|e| *e <= fdem_triaxial::STABLE_ENERGY_ERROR)
 }
 
 /// The energy balance errors `[consolidation, shear]` of the run in `dir`, from its
@@ -291,6 +297,24 @@ pub fn mean_and_spread(values: impl IntoIterator<Item = f64>) -> (f64, f64) {
 
 #[cfg(test)]
 mod tests {
+    /// The balance of both phases comes from `summary.json`; a run closes it when both
+    /// are known and at most 1 % of their scales.
+    #[test]
+    fn a_run_closes_its_balance_only_when_both_phases_do() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(energy_balance(dir.path()).iter().all(|e| e.is_nan()));
+        std::fs::write(
+            dir.path().join("summary.json"),
+            r#"{"consolidation": {"energy_balance_error": 1.5e-4}, "energy_balance_error": 0.2}"#,
+        )
+        .unwrap();
+        let balance = energy_balance(dir.path());
+        assert_eq!(balance, [1.5e-4, 0.2]);
+        assert!(!closes(balance));
+        assert!(closes([1.5e-4, 9.7e-3]));
+        assert!(!closes([f64::NAN, 1e-4]));
+    }
+
     use super::*;
 
     fn point(eps_a: f64, eta: f64, eps_v: f64, q: f64) -> CurvePoint {
