@@ -396,25 +396,7 @@ fn stable_step(
     coefficients: &[NodeCoefficients],
     masses: &[f64],
 ) -> Option<StableStep> {
-    let other = counterpart_mass(surface, masses);
-    let mut stable: Option<StableStep> = None;
-    for (k, (&node, c)) in surface.surface_nodes.iter().zip(coefficients).enumerate() {
-        let body = surface.node_body[k];
-        let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
-        let (stiffness, damping_ratio) = stiffer_spring(params, c);
-        let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
-        if stable.is_none_or(|s| dt < s.time_step) {
-            stable = Some(StableStep {
-                time_step: dt,
-                node,
-                body,
-                stiffness,
-                mass,
-                damping_ratio,
-            });
-        }
-    }
-    stable
+    smallest_step(params, surface, coefficients, masses, |_, own| Some(own))
 }
 
 /// The smallest bound over the nodes of sheet bodies with both sides of a conformal
@@ -427,7 +409,6 @@ fn sheet_stable_step(
     masses: &[f64],
     sheets: &Sheets,
 ) -> Option<StableStep> {
-    let other = counterpart_mass(surface, masses);
     // The stiffest spring of a node that is not on a sheet: one such node pressing a
     // sheet face at its corner puts all of it on the corner node.
     let counterpart = surface
@@ -437,19 +418,35 @@ fn sheet_stable_step(
         .filter(|(b, _)| !sheets.is_sheet(**b))
         .map(|(_, c)| stiffer_spring(params, c).0)
         .fold(0.0, f64::max);
+    // A sheet node's own spring against the face it touches, plus the springs of the
+    // other surface's nodes pressing the faces around it: at most one node's worth of the
+    // other surface's area per node of the sheet (the weights of a node's faces sum to
+    // its share of their area), or the stiffest single node at a face corner.
+    smallest_step(params, surface, coefficients, masses, |body, own| {
+        sheets.is_sheet(body).then(|| own + own.max(counterpart))
+    })
+}
+
+/// The smallest spring-dashpot bound over the surface nodes, each with the stiffness
+/// `stiffness(body, own)` gives from its own stiffer spring (`None`: the node is left
+/// out), its damping ratio and the reduced mass of the node and its counterpart body; the
+/// first node of the smallest bound names it. `masses` per surface node.
+fn smallest_step(
+    params: &ContactParams,
+    surface: &ContactSurface,
+    coefficients: &[NodeCoefficients],
+    masses: &[f64],
+    stiffness: impl Fn(u32, f64) -> Option<f64>,
+) -> Option<StableStep> {
+    let other = counterpart_mass(surface, masses);
     let mut stable: Option<StableStep> = None;
     for (k, (&node, c)) in surface.surface_nodes.iter().zip(coefficients).enumerate() {
         let body = surface.node_body[k];
-        if !sheets.is_sheet(body) {
-            continue;
-        }
-        let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
         let (own, damping_ratio) = stiffer_spring(params, c);
-        // Its own spring against the face it touches, plus the springs of the other
-        // surface's nodes pressing the faces around it: at most one node's worth of the
-        // other surface's area per node of the sheet (the weights of a node's faces sum to
-        // its share of their area), or the stiffest single node at a face corner.
-        let stiffness = own + own.max(counterpart);
+        let Some(stiffness) = stiffness(body, own) else {
+            continue;
+        };
+        let mass = 1.0 / (1.0 / masses[k] + 1.0 / other(body));
         let dt = spring_dashpot_time_step(stiffness, mass, damping_ratio);
         if stable.is_none_or(|s| dt < s.time_step) {
             stable = Some(StableStep {

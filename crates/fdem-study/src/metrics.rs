@@ -81,10 +81,7 @@ fn closes(balance: [f64; 2]) -> bool {
 /// The energy balance errors `[consolidation, shear]` of the run in `dir`, from its
 /// `summary.json` (NaN for what it does not hold).
 fn energy_balance(dir: &Path) -> [f64; 2] {
-    let summary = std::fs::read_to_string(dir.join("summary.json"))
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-    let Some(s) = summary else {
+    let Some(s) = crate::run::read_summary(&dir.join("summary.json")) else {
         return [f64::NAN; 2];
     };
     [

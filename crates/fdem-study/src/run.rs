@@ -611,10 +611,7 @@ fn failed(run: &RunDef, path: &Path, failure: String) -> Result<RunRecord, Study
 /// `record` from the test's `summary.json` (a test that failed writes it; a preparation
 /// that failed leaves none, and the record keeps zeros).
 fn add_failed_test_costs(record: &mut RunRecord, summary: &Path) {
-    let Ok(text) = std::fs::read_to_string(summary) else {
-        return;
-    };
-    let Ok(s) = serde_json::from_str::<serde_json::Value>(&text) else {
+    let Some(s) = read_summary(summary) else {
         return;
     };
     let phase = |c: &serde_json::Value| PhaseRecord {
@@ -636,6 +633,12 @@ fn add_failed_test_costs(record: &mut RunRecord, summary: &Path) {
     if !classes.is_empty() {
         record.model_used = model_used(count(true), count(true) + count(false));
     }
+}
+
+/// A test's `summary.json` at `path` as JSON, if it is there and parses.
+pub(crate) fn read_summary(path: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(path).ok()?;
+    serde_json::from_str(&text).ok()
 }
 
 /// The model a run used, from its rigid and total particle counts.

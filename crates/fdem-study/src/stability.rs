@@ -345,21 +345,19 @@ pub fn run_map(
     let mut rows = read_rows(&csv)?;
     let points = spec.points();
     let mut packed: Option<PreparedSpecimen> = None;
-    // The current bound of each line, once the line has been looked at.
-    let mut bounds: Vec<(LineKey, f64)> = Vec::new();
+    // The line being probed (the points come line by line): its specimen and its bound.
+    let mut line: Option<(LineKey, PreparedSpecimen, f64)> = None;
     for (i, point) in points.iter().enumerate() {
-        if packed.is_none() {
-            packed = Some(packing(dir, observer)?);
-        }
-        let prepared = probe_specimen(packed.as_ref().expect("prepared above"), point)?;
-        let bound = match bounds.iter().find(|(l, _)| *l == point.line()) {
-            Some(&(_, b)) => b,
-            None => {
-                let b = probe_bound(&prepared)?.dt;
-                bounds.push((point.line(), b));
-                b
+        if line.as_ref().is_none_or(|(key, ..)| *key != point.line()) {
+            if packed.is_none() {
+                packed = Some(packing(dir, observer)?);
             }
-        };
+            let prepared = probe_specimen(packed.as_ref().expect("prepared above"), point)?;
+            let bound = probe_bound(&prepared)?.dt;
+            line = Some((point.line(), prepared, bound));
+        }
+        let (_, prepared, bound) = line.as_ref().expect("set above");
+        let (prepared, bound) = (prepared, *bound);
         if let Some(done) = rows.iter().find(|r| r.is_at(point) && r.bound == bound) {
             progress(i, points.len(), done);
             continue;
@@ -370,7 +368,7 @@ pub fn run_map(
             });
         }
         rows.retain(|r| !r.is_at(point));
-        let outcome = probe(&prepared, point.factor, spec.steps)?;
+        let outcome = probe(prepared, point.factor, spec.steps)?;
         let row = MapRow {
             model: point.variant.name().to_string(),
             order: order_name(point.variant.order).to_string(),
