@@ -222,7 +222,10 @@ fn run_pair_with(
     tamper: impl Fn(&Scene, &mut Scene),
 ) -> (Observed, Observed) {
     let (a, b) = try_run_pair_with(original, h, steps, tamper);
-    (a.expect("the original is stable"), b.expect("the scaled run is stable"))
+    (
+        a.expect("the original is stable"),
+        b.expect("the scaled run is stable"),
+    )
 }
 
 fn run_pair(original: &Scene, h: f64, steps: usize) -> (Observed, Observed) {
@@ -295,7 +298,13 @@ fn sensitivity(c: &Case, original: &Observed) -> Option<[f64; 5]> {
     Some(compare(original, &perturbed.ok()?, 1.0))
 }
 
-const NAMES: [&str; 5] = ["positions", "velocities", "wall forces", "energies", "stresses"];
+const NAMES: [&str; 5] = [
+    "positions",
+    "velocities",
+    "wall forces",
+    "energies",
+    "stresses",
+];
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 12, ..ProptestConfig::default() })]
@@ -351,12 +360,21 @@ fn an_ill_conditioned_case_is_judged_by_its_sensitivity() {
                 [-0.009097339706639474; 3],
                 [1.7320508075688774; 3],
                 [42.57061949580941, 0.0, -65.94214294701301],
-                [-0.7463217070184653, 0.2949260714126866, 0.2096454759587194, -0.5586334186603634],
+                [
+                    -0.7463217070184653,
+                    0.2949260714126866,
+                    0.2096454759587194,
+                    -0.5586334186603634,
+                ],
                 true,
             ),
             (
                 0.018,
-                [0.009097339706639474, -0.009097339706639474, -0.009097339706639474],
+                [
+                    0.009097339706639474,
+                    -0.009097339706639474,
+                    -0.009097339706639474,
+                ],
                 [-1.7320508075688774, 1.7320508075688774, 1.7320508075688774],
                 [0.0, 87.80595890934697, -37.44177212841513],
                 [-0.044044522205166955, 0.0, 0.0, -0.9990295691638553],
@@ -364,7 +382,11 @@ fn an_ill_conditioned_case_is_judged_by_its_sensitivity() {
             ),
             (
                 0.018,
-                [-0.009097339706639474, 0.009097339706639474, -0.009097339706639474],
+                [
+                    -0.009097339706639474,
+                    0.009097339706639474,
+                    -0.009097339706639474,
+                ],
                 [1.7320508075688774, -1.7320508075688774, 1.7320508075688774],
                 [0.0, -98.30935499064935, 0.0],
                 [0.0, -0.9580081946851982, -0.28674082185138433, 0.0],
@@ -383,13 +405,22 @@ fn an_ill_conditioned_case_is_judged_by_its_sensitivity() {
     assert!(a.contacts > 0);
     let d = compare(&a, &b, h);
     eprintln!("scaled by {h}: deviations {d:?}");
-    assert!(d[1] > TOLERANCE, "the case no longer exceeds the plain tolerance: {d:?}");
+    assert!(
+        d[1] > TOLERANCE,
+        "the case no longer exceeds the plain tolerance: {d:?}"
+    );
     let (exact_a, exact_b) = run_pair(&scene(&c), 2.0, STEPS);
     assert_eq!(compare(&exact_a, &exact_b, 2.0), [0.0; 5]);
     let s = sensitivity(&c, &a).expect("the probe runs to the end");
     eprintln!("sensitivity probe: deviations {s:?}");
     for k in 0..5 {
-        assert!(d[k] <= s[k], "{}: {:e} against the probe's {:e}", NAMES[k], d[k], s[k]);
+        assert!(
+            d[k] <= s[k],
+            "{}: {:e} against the probe's {:e}",
+            NAMES[k],
+            d[k],
+            s[k]
+        );
     }
     assert!(s.iter().all(|&x| x < PROBE_CAP));
 }
@@ -492,7 +523,10 @@ fn the_documented_scaling_table_is_the_derived_one() {
 fn sweep_of_random_cases() {
     use proptest::strategy::ValueTree;
     use proptest::test_runner::TestRunner;
-    let cases: usize = std::env::var("FDEM_SWEEP_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(500);
+    let cases: usize = std::env::var("FDEM_SWEEP_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(500);
     let icosahedra = std::env::var("FDEM_SWEEP_ICOSAHEDRA").is_ok_and(|v| v == "1");
     let mut runner = TestRunner::deterministic();
     let (mut worst, mut worst_ratio) = ([0.0f64; 5], 0.0f64);
@@ -510,7 +544,11 @@ fn sweep_of_random_cases() {
         let (a, b) = match (a, b) {
             (Ok(a), Ok(b)) => (a, b),
             (a, b) => {
-                assert_eq!(a.err(), b.err(), "case {i}: only one of the runs was stopped");
+                assert_eq!(
+                    a.err(),
+                    b.err(),
+                    "case {i}: only one of the runs was stopped"
+                );
                 stopped += 1;
                 continue;
             }
@@ -536,8 +574,11 @@ fn sweep_of_random_cases() {
     println!(
         "{cases} cases{}: {stopped} stopped by the guard in both runs at the same step; largest deviations {worst:?}; {flagged} above {TOLERANCE:e}, {rejected} of them \
          rejected (probe above {PROBE_CAP:e}); largest deviation over the probe's among the rest {worst_ratio:.3}",
-        if icosahedra { " of rigid icosahedra" } else { "" }
+        if icosahedra {
+            " of rigid icosahedra"
+        } else {
+            ""
+        }
     );
     assert!(worst_ratio < PROBE_MARGIN);
 }
-
