@@ -18,8 +18,11 @@
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
 //! depth limit` apart and still are more than the depth limit apart (each moved less than
-//! `margin / 2`), so no contact within the depth limit can be missed. The model rebuilds
-//! as soon as one node has moved farther.
+//! `margin / 2`), so no contact within the depth limit can be missed. As soon as one node
+//! has moved farther, the model either refreshes the pairs of the bodies that drifted
+//! ([`refresh`]: a few rattling particles) or rebuilds everything.
+
+mod refresh;
 
 use rayon::prelude::*;
 
@@ -147,8 +150,12 @@ pub(crate) struct Candidate {
 pub(crate) struct BroadPhase {
     /// Whether a build has happened.
     pub(crate) built: bool,
-    /// Number of builds so far.
+    /// Number of full builds so far.
     pub(crate) builds: usize,
+    /// Number of partial refreshes so far ([`refresh`]).
+    pub(crate) refreshes: usize,
+    /// Surface nodes refreshed since the last full build.
+    refreshed_nodes: usize,
     /// Enlargement of the triangle boxes at the last build (m).
     pub(crate) enlargement: f64,
     /// Reach in front of a face's plane at the last build (m), see [`FRONT_SKINS`].
@@ -346,6 +353,7 @@ impl BroadPhase {
         self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
         self.built = true;
         self.builds += 1;
+        self.refreshed_nodes = 0;
     }
 
     /// The triangle boxes at `positions`, enlarged by `reach` plus the tolerance band;

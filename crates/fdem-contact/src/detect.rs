@@ -13,7 +13,7 @@ use crate::broad::{BroadPhase, CHUNK, Candidate};
 use crate::events::{Reason, Rejection};
 use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
-use crate::narrow::{FaceHit, ProjectionKernel};
+use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle};
 use crate::sheet::{self, Sheets};
 use crate::vec3::{add, norm, scale, sub};
 use crate::wall::wall_distance;
@@ -343,9 +343,16 @@ impl Ctx<'_> {
         Ok(Ok(best))
     }
 
-    /// The tunnelling check of node `k` (velocity `v`) against every face of the group,
-    /// when this step needs it: the node may not move farther than its reach
-    /// ([`StepReach`]) relative to a face's centroid in one step.
+    /// The tunnelling check of node `k` (velocity `v`) against the faces of the group
+    /// within the depth limit of it, when this step needs it: the node may not move
+    /// farther than its reach ([`StepReach`]) relative to a face's centroid in one step.
+    ///
+    /// A farther face cannot be met in this step (no two nodes approach by more than the
+    /// depth limit in one, [`ContactModel::add_forces`] checks that first), and every face
+    /// within the depth limit is a candidate whatever the last build or refresh, so the
+    /// check does not depend on how many farther candidates the lists hold.
+    ///
+    /// [`ContactModel::add_forces`]: crate::ContactModel::add_forces
     fn check_tunnelling(
         &self,
         k: usize,
@@ -357,7 +364,15 @@ impl Ctx<'_> {
         }
         let counterpart = Counterpart::Body(group.body);
         let (reach, _) = self.reach(counterpart);
-        for c in group.cands {
+        let limit2 = self.depth_limit * self.depth_limit * (1.0 + PLANE_SLACK);
+        for (c, &s) in group.cands.iter().zip(group.signed) {
+            if s * s > limit2 {
+                continue;
+            }
+            let face = c.nodes.map(|j| self.positions[j as usize]);
+            if distance2_to_triangle(group.x, face) > limit2 {
+                continue;
+            }
             let [a, b, cc] = c.nodes.map(|j| self.velocities[j as usize]);
             let vc = scale(add(add(a, b), cc), 1.0 / 3.0);
             let d = norm(sub(v, vc)) * self.dt;

@@ -108,6 +108,21 @@ pub enum ContactError {
         value: f64,
     },
 
+    /// A field of a [`crate::RefreshPolicy`] is out of its range.
+    #[error(
+        "refresh policy's {field} = {} is not in {range}; give a value in that range (the \
+         default policy: RefreshPolicy::default())",
+        Number(*.value)
+    )]
+    InvalidRefreshPolicy {
+        /// `"near"`, `"max_fraction"` or `"max_refreshed_fraction"`.
+        field: &'static str,
+        /// The value that was given.
+        value: f64,
+        /// The allowed range, as text.
+        range: &'static str,
+    },
+
     /// The Verlet-skin margin is not finite and positive.
     #[error(
         "contact margin {} m is not finite and > 0; use for example \

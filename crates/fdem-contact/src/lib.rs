@@ -133,7 +133,7 @@ pub use error::{ContactError, TunnellingScale};
 pub use law::{LawInput, LawOutput, evaluate_law};
 pub use model::{
     ContactCheckpoint, ContactModel, ContactReport, Counterpart, DEPTH_LIMIT_GROWTH,
-    MARGIN_EDGE_FRACTION, NodeContact, PairSum, StableStep, TUNNELLING_FRACTION,
+    MARGIN_EDGE_FRACTION, NodeContact, PairSum, RefreshPolicy, StableStep, TUNNELLING_FRACTION,
 };
 pub use narrow::{BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance};
 pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};

@@ -25,6 +25,52 @@ pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
 /// reports [`ContactError::PenetrationTooDeep`].
 pub const TUNNELLING_FRACTION: f64 = 0.5;
 
+/// When the broad phase renews only the pairs of the bodies that drifted instead of
+/// rebuilding every pair ([`ContactModel::set_refresh_policy`]). A refresh renews the
+/// pairs of every body with a surface node past `near` times half the margin (the one that
+/// triggered it, and those that would trigger the next ones soon after) when they hold at
+/// most `max_fraction` of the surface nodes and, with the nodes refreshed since the last
+/// full build, at most `max_refreshed_fraction`; otherwise everything is rebuilt. Results
+/// do not depend on the policy (the narrow phase gives the same forces for any candidate
+/// lists that hold every face within the depth limit), only the cost does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefreshPolicy {
+    /// Fraction of half the margin, in (0, 1].
+    pub near: f64,
+    /// Largest share of the surface nodes one refresh renews, in [0, 1] (0: always
+    /// rebuild everything).
+    pub max_fraction: f64,
+    /// Largest share of the surface nodes renewed by refreshes between full builds, in
+    /// [0, 1]: refreshed pairs are found with a wider reach (one and a half skins of
+    /// relative motion instead of one), so the lists grow until a full build trims them.
+    pub max_refreshed_fraction: f64,
+}
+
+impl Default for RefreshPolicy {
+    /// Refresh the bodies past a quarter of the margin while they are at most a tenth of
+    /// the surface nodes, and at most half between full builds (chosen on a checkpoint of
+    /// the study's B1 run and the quick test, docs/PERFORMANCE.md).
+    fn default() -> Self {
+        RefreshPolicy {
+            near: 0.5,
+            max_fraction: 0.1,
+            max_refreshed_fraction: 0.5,
+        }
+    }
+}
+
+/// What [`ContactModel::add_forces`] did to the broad phase in one evaluation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Renewal {
+    None,
+    /// The pairs of this many bodies that drifted were refreshed.
+    Refresh {
+        bodies: usize,
+    },
+    /// Every pair was rebuilt.
+    Full,
+}
+
 /// When a contact passes half the depth limit, the limit grows to this multiple of its
 /// depth ([`ContactModel::set_depth_limit_cap`]): the contact then sits at a third of it.
 pub const DEPTH_LIMIT_GROWTH: f64 = 3.0;
@@ -239,8 +285,11 @@ pub struct ContactReport {
     pub wall_power: f64,
     /// Largest penetration depth (m).
     pub max_depth: f64,
-    /// Whether the broad phase was rebuilt in this evaluation.
+    /// Whether the broad phase was rebuilt in this evaluation (every pair).
     pub rebuilt: bool,
+    /// Bodies whose pairs the broad phase refreshed in this evaluation, having drifted past
+    /// half the margin (0 without a refresh, and at a full build).
+    pub refreshed_bodies: usize,
     /// Candidate (surface node, triangle) pairs of the current broad phase.
     pub candidate_pairs: usize,
     /// Node-to-sheet hits deeper than the sheets' fold depth that were discarded as fold
@@ -343,6 +392,7 @@ pub struct ContactModel {
     stable: Option<StableStep>,
     broad: BroadPhase,
     rebuild_requested: bool,
+    refresh_policy: RefreshPolicy,
     contacts: Vec<NodeContact>,
     chunks: Vec<ChunkScratch>,
     wall_shapes: Vec<WallShape>,
@@ -528,6 +578,7 @@ impl ContactModel {
             stable,
             broad: BroadPhase::default(),
             rebuild_requested: true,
+            refresh_policy: RefreshPolicy::default(),
             contacts: Vec::new(),
             chunks: vec![ChunkScratch::default(); n_chunks],
             wall_shapes: Vec::with_capacity(walls.len()),
@@ -791,15 +842,56 @@ impl ContactModel {
         Ok(())
     }
 
+    /// Sets when the broad phase refreshes only the bodies that drifted ([`RefreshPolicy`]);
+    /// the results are the same under any policy.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidRefreshPolicy`] naming the field when `near` is not in
+    /// (0, 1] or a fraction not in [0, 1] (NaN included); nothing is changed then.
+    pub fn set_refresh_policy(&mut self, policy: RefreshPolicy) -> Result<(), ContactError> {
+        let fields = [
+            ("near", policy.near, "(0, 1]", policy.near > 0.0),
+            (
+                "max_fraction",
+                policy.max_fraction,
+                "[0, 1]",
+                policy.max_fraction >= 0.0,
+            ),
+            (
+                "max_refreshed_fraction",
+                policy.max_refreshed_fraction,
+                "[0, 1]",
+                policy.max_refreshed_fraction >= 0.0,
+            ),
+        ];
+        for (field, value, range, above) in fields {
+            if !(above && value <= 1.0) {
+                return Err(ContactError::InvalidRefreshPolicy {
+                    field,
+                    value,
+                    range,
+                });
+            }
+        }
+        self.refresh_policy = policy;
+        Ok(())
+    }
+
     /// Forces the next evaluation to rebuild the broad phase (for example after nodes were
     /// moved by something other than time stepping).
     pub fn request_rebuild(&mut self) {
         self.rebuild_requested = true;
     }
 
-    /// Number of broad-phase builds so far.
+    /// Number of full broad-phase builds so far.
     pub fn rebuild_count(&self) -> usize {
         self.broad.builds
+    }
+
+    /// Number of partial broad-phase refreshes so far (the pairs of the bodies that drifted
+    /// past half the margin renewed, the others kept).
+    pub fn refresh_count(&self) -> usize {
+        self.broad.refreshes
     }
 
     /// Enlargement of the triangle boxes at the last build (m): `margin + depth_limit`
@@ -815,6 +907,14 @@ impl ContactModel {
         self.broad.front
     }
 
+    /// The enlargement and the front reach (m) with which a partial refresh finds the pairs
+    /// of the bodies that drifted: those of the last full build
+    /// ([`ContactModel::candidate_enlargement`], [`ContactModel::candidate_front_reach`])
+    /// grown for one and a half skins of relative motion instead of one.
+    pub fn candidate_refresh_reaches(&self) -> (f64, f64) {
+        self.broad.refresh_reaches(self.margin)
+    }
+
     /// Cell size of the broad phase's node grid at the last build (m).
     pub fn cell_size(&self) -> f64 {
         self.broad.cell_size
@@ -825,7 +925,10 @@ impl ContactModel {
     /// build, the triangle belongs to another body, the node lies within
     /// [`ContactModel::candidate_enlargement`] of the triangle, and the node is behind the
     /// triangle's plane, or within [`ContactModel::candidate_front_reach`] of the
-    /// triangle, or the triangle belongs to a sheet ([`ContactModel::set_sheet_bodies`]).
+    /// triangle, or the triangle belongs to a sheet ([`ContactModel::set_sheet_bodies`]);
+    /// a pair with a node or a face on a body refreshed since
+    /// ([`ContactModel::refresh_count`]) was found the same way at its last refresh, with
+    /// [`ContactModel::candidate_refresh_reaches`].
     pub fn candidate_pairs(&self) -> Vec<(usize, usize)> {
         let mut out = Vec::with_capacity(self.broad.pairs);
         if !self.broad.built {
@@ -1001,7 +1104,7 @@ impl ContactModel {
             }
             result => result?,
         };
-        let mut rebuilt = self.rebuild_if_due(positions, scan.max_drift2);
+        let mut renewal = self.rebuild_if_due(positions, scan.max_drift2);
         self.update_geometry(positions, time);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
@@ -1014,7 +1117,10 @@ impl ContactModel {
                 Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
-                    rebuilt |= self.rebuild_if_due(positions, scan.max_drift2);
+                    match self.rebuild_if_due(positions, scan.max_drift2) {
+                        Renewal::None => {}
+                        again => renewal = again,
+                    }
                 }
                 result => break result?,
             }
@@ -1022,7 +1128,7 @@ impl ContactModel {
 
         // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
         let before = self.jumps.is_some().then(|| self.contacts.clone());
-        let report = self.apply_forces(forces, rebuilt);
+        let report = self.apply_forces(forces, renewal);
         self.report = report;
         self.evaluations += 1;
         if let Some(before) = before {
@@ -1193,22 +1299,46 @@ impl ContactModel {
 
     /// Rebuilds the broad phase when asked to, before the first evaluation, or when a
     /// surface node has drifted farther than half the margin (`max_drift2` is the square
-    /// of the largest drift); returns whether it did.
-    fn rebuild_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> bool {
+    /// of the largest drift); in the last case only the bodies that drifted are refreshed
+    /// when the [`RefreshPolicy`] allows. Returns what it did.
+    fn rebuild_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> Renewal {
         let half = TUNNELLING_FRACTION * self.margin;
-        let rebuild = self.rebuild_requested || !self.broad.built || max_drift2 > half * half;
-        if rebuild {
-            let sheets = &self.sheets;
-            self.broad.build(
-                positions,
-                &self.surface,
-                self.margin,
-                self.depth_limit,
-                |body| sheets.is_sheet(body),
-            );
-            self.rebuild_requested = false;
+        let full = self.rebuild_requested || !self.broad.built;
+        if !full && max_drift2 <= half * half {
+            return Renewal::None;
         }
-        rebuild
+        let sheets = &self.sheets;
+        if !full {
+            // Bodies past half the margin and those on their way there: in a specimen
+            // deforming as a whole most bodies are, and one full build serves them all.
+            let policy = self.refresh_policy;
+            let near = policy.near * half;
+            let (dirty, nodes) = self.broad.drifted_bodies(positions, &self.surface, near);
+            let total = self.surface.surface_nodes.len() as f64;
+            let refreshed = (self.broad.refreshed_nodes() + nodes) as f64;
+            if nodes as f64 <= policy.max_fraction * total
+                && refreshed <= policy.max_refreshed_fraction * total
+            {
+                let bodies = dirty.iter().filter(|&&d| d).count();
+                let refreshed =
+                    self.broad
+                        .refresh(positions, &self.surface, &dirty, self.margin, |body| {
+                            sheets.is_sheet(body)
+                        });
+                if refreshed {
+                    return Renewal::Refresh { bodies };
+                }
+            }
+        }
+        self.broad.build(
+            positions,
+            &self.surface,
+            self.margin,
+            self.depth_limit,
+            |body| sheets.is_sheet(body),
+        );
+        self.rebuild_requested = false;
+        Renewal::Full
     }
 
     /// Which per-pair tunnelling checks this step needs, from the largest node speed
@@ -1285,9 +1415,13 @@ impl ContactModel {
 
     /// Adds the chunks' contact forces and the reactions on faces and walls to `forces`,
     /// keeps the contacts as the next evaluation's history, and sums the report.
-    fn apply_forces(&mut self, forces: &mut [[f64; 3]], rebuilt: bool) -> ContactReport {
+    fn apply_forces(&mut self, forces: &mut [[f64; 3]], renewal: Renewal) -> ContactReport {
         let mut report = ContactReport {
-            rebuilt,
+            rebuilt: renewal == Renewal::Full,
+            refreshed_bodies: match renewal {
+                Renewal::Refresh { bodies } => bodies,
+                _ => 0,
+            },
             candidate_pairs: self.broad.pairs,
             ..ContactReport::default()
         };

@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 
 use common::{add, cross, dot, linear_sphere, model_for, random_rotation, rng, scale, sub};
 use fdem_contact::narrow::{project_hand, project_parry};
-use fdem_contact::{BARYCENTRIC_TOLERANCE, ContactModel, ContactParams};
+use fdem_contact::{BARYCENTRIC_TOLERANCE, ContactModel, ContactParams, RefreshPolicy};
 use fdem_mesh::{MeshAssembly, Placement};
 use proptest::prelude::*;
 use rand::RngExt;
@@ -177,8 +177,15 @@ proptest! {
         let needed = contact_capable(&assembly, &x1, depth_limit);
         prop_assert!(needed.is_subset(&set), "a contact-capable pair is missing");
 
-        // One body moves rigidly by 0.6 margin: rebuild, and the lists equal brute force
-        // at the new positions.
+        // One body moves rigidly by 0.6 margin; under a policy that refreshes any body
+        // that drifted past half the margin, only its pairs are renewed: the pairs without
+        // it are kept, and those with it (its nodes, its faces) equal brute force at the
+        // new positions with the refresh's reaches.
+        model.set_refresh_policy(RefreshPolicy {
+            near: 1.0,
+            max_fraction: 1.0,
+            max_refreshed_fraction: 1.0,
+        }).unwrap();
         let mover = seed as usize % assembly.n_bodies();
         let shift = scale(common::random_unit(&mut r), 0.6 * margin);
         let mut x2 = x1.clone();
@@ -186,11 +193,151 @@ proptest! {
             x2[i] = add(x2[i], shift);
         }
         let report = evaluate(&mut model, &x2);
-        prop_assert!(report.rebuilt);
-        let e = model.candidate_enlargement();
+        prop_assert!(!report.rebuilt);
+        prop_assert_eq!(report.refreshed_bodies, 1);
         let set2: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
-        prop_assert_eq!(set2, brute_force(&assembly, &x2, e, model.candidate_front_reach()));
+        let involves = |&(node, t): &(usize, usize)| {
+            assembly.bodies[mover].nodes.contains(&node)
+                || assembly.triangle_body[t] as usize == mover
+        };
+        let (e, front) = model.candidate_refresh_reaches();
+        let mut expect: BTreeSet<_> = set.iter().copied().filter(|p| !involves(p)).collect();
+        expect.extend(
+            brute_force(&assembly, &x2, e, front)
+                .into_iter()
+                .filter(|p| involves(p)),
+        );
+        prop_assert!(contact_capable(&assembly, &x2, depth_limit).is_subset(&set2));
+        prop_assert_eq!(set2, expect);
     }
+}
+
+#[test]
+fn a_refresh_policy_out_of_range_is_refused() {
+    let assembly = scene(5, 3, 1, 0.01, 1e-3..2e-3);
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(2e-4),
+    );
+    let good = RefreshPolicy::default();
+    for bad in [
+        RefreshPolicy { near: 0.0, ..good },
+        RefreshPolicy { near: 1.5, ..good },
+        RefreshPolicy {
+            max_fraction: -0.1,
+            ..good
+        },
+        RefreshPolicy {
+            max_refreshed_fraction: f64::NAN,
+            ..good
+        },
+    ] {
+        let e = model.set_refresh_policy(bad).unwrap_err();
+        assert!(e.to_string().contains("refresh policy's"), "{e}");
+    }
+    model
+        .set_refresh_policy(RefreshPolicy {
+            max_fraction: 0.0,
+            ..good
+        })
+        .unwrap();
+}
+
+/// Rigid oscillations of the bodies of `assembly` about where they are, each along a random
+/// direction: body 0 with amplitude `rattle`, the others with `amplitude`; periods of 30
+/// to 60 steps.
+fn oscillating(
+    assembly: &MeshAssembly,
+    seed: u64,
+    rattle: f64,
+    amplitude: f64,
+) -> impl Fn(usize) -> Vec<[f64; 3]> {
+    let mut r = rng(seed);
+    let motions: Vec<([f64; 3], f64)> = (0..assembly.n_bodies())
+        .map(|b| {
+            let a = if b == 0 { rattle } else { amplitude };
+            let omega = std::f64::consts::TAU / r.random_range(30.0..60.0);
+            (scale(common::random_unit(&mut r), a), omega)
+        })
+        .collect();
+    let assembly = assembly.clone();
+    move |step| {
+        let mut x = assembly.nodes.clone();
+        for (b, &(u, omega)) in motions.iter().enumerate() {
+            let shift = scale(u, (omega * step as f64).sin());
+            for i in assembly.bodies[b].nodes.clone() {
+                x[i] = add(x[i], shift);
+            }
+        }
+        x
+    }
+}
+
+#[test]
+fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
+    // Eight spheres in a cluster, surfaces up to 0.1 margin apart, oscillating: a
+    // rattler (amplitude one margin) drifts past half the margin several times per
+    // period, the others (0.12 margin) never past a quarter of it (the default policy
+    // refreshes those too); no contact gets deeper than 1.12 margins, below
+    // half the depth limit of 3 margins. One model refreshes what drifted, the
+    // other rebuilds everything at every evaluation; forces and contacts must agree bit
+    // for bit, and the first must have refreshed.
+    let margin = 2e-4;
+    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
+    assert!(assembly.n_bodies() >= 5, "{} bodies", assembly.n_bodies());
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let mut refreshing = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    // The rattler holds an eighth of the surface nodes, more than the default policy
+    // refreshes alone.
+    refreshing
+        .set_refresh_policy(RefreshPolicy {
+            max_fraction: 0.2,
+            ..RefreshPolicy::default()
+        })
+        .unwrap();
+    let mut rebuilding = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    for m in [&mut refreshing, &mut rebuilding] {
+        m.set_depth_limit(3.0 * margin).unwrap();
+    }
+    let positions = oscillating(&assembly, 5, margin, 0.12 * margin);
+    let n = assembly.n_nodes();
+    let v = vec![[0.0; 3]; n];
+    let (mut refreshes, mut contacts) = (0, 0);
+    for step in 0..200 {
+        let x = positions(step);
+        let mut fa = vec![[0.0; 3]; n];
+        let mut fb = vec![[0.0; 3]; n];
+        let t = step as f64 * 1e-7;
+        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
+        rebuilding.request_rebuild();
+        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(
+            a.stored_energy.to_bits(),
+            b.stored_energy.to_bits(),
+            "step {step}"
+        );
+        refreshes += usize::from(a.refreshed_bodies > 0);
+        contacts = contacts.max(a.contacts);
+    }
+    eprintln!(
+        "{refreshes} refreshes, {} full builds, up to {contacts} contacts",
+        refreshing.rebuild_count()
+    );
+    assert!(refreshes >= 5, "{refreshes} refreshes");
+    assert!(contacts >= 5, "{contacts} contacts");
+    assert!(
+        refreshing.rebuild_count() < 20,
+        "{} full builds",
+        refreshing.rebuild_count()
+    );
 }
 
 #[test]

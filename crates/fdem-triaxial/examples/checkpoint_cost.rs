@@ -1,5 +1,6 @@
-//! The cost of a test step at a checkpoint, split into steps with and without a
-//! broad-phase rebuild, and a checksum of the state reached: for measuring a speed change
+//! The cost of a test step at a checkpoint, split into steps with a full broad-phase
+//! rebuild, with a partial refresh (the bodies that drifted) and with neither, and a
+//! checksum of the state reached: for measuring a speed change
 //! on a real specimen (run it with the old and the new binary; equal checksums mean the
 //! change left the physics bit for bit as it was).
 //!
@@ -10,7 +11,9 @@
 //! rayon's default) timing every step, and prints one CSV row: steps,
 //! rebuilds, the mean wall milliseconds of steps with and without a rebuild, a rebuild's
 //! extra cost in plain steps, the candidate pairs and contacts at the end, the broad phase's
-//! cell size and box enlargement (m), and the FNV-1a hash of the node positions' bits. The platens keep the motion they had at the
+//! cell size and box enlargement (m), the FNV-1a hash of the node positions' bits, the
+//! refreshes and the mean milliseconds of a step with one, and the mean milliseconds of
+//! all steps. The platens keep the motion they had at the
 //! checkpoint, as in shear.
 use fdem_triaxial::{PreparedSpecimen, TestModel};
 use std::path::Path;
@@ -39,14 +42,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         contact.model_mut().set_depth_limit(limit.parse()?)?;
     }
     let builds = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().rebuild_count());
-    let (mut plain, mut rebuilt) = ((0u64, 0.0f64), (0u64, 0.0f64));
+    let refreshes = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().refresh_count());
+    let (mut plain, mut rebuilt, mut refreshed) = ((0u64, 0.0f64), (0u64, 0.0f64), (0u64, 0.0f64));
     for _ in 0..steps {
-        let before = builds(&model);
+        let before = (builds(&model), refreshes(&model));
         let t = Instant::now();
         model.sim.advance()?;
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        let slot = if builds(&model) > before {
+        let slot = if builds(&model) > before.0 {
             &mut rebuilt
+        } else if refreshes(&model) > before.1 {
+            &mut refreshed
         } else {
             &mut plain
         };
@@ -73,12 +79,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!(
-        "steps,rebuilds,ms_plain,ms_rebuild,rebuild_cost_steps,pairs,contacts,cell_size,enlargement,hash"
+        "steps,rebuilds,ms_plain,ms_rebuild,rebuild_cost_steps,pairs,contacts,cell_size,enlargement,hash,refreshes,ms_refresh,ms_step"
     );
+    let all_ms = (plain.1 + rebuilt.1 + refreshed.1) / steps.max(1) as f64;
     println!(
-        "{steps},{},{plain_ms:.3},{rebuilt_ms:.3},{:.2},{pairs},{contacts},{cell:e},{enlargement:e},{hash:016x}",
+        "{steps},{},{plain_ms:.3},{rebuilt_ms:.3},{:.2},{pairs},{contacts},{cell:e},{enlargement:e},{hash:016x},{},{:.3},{all_ms:.3}",
         rebuilt.0,
         (rebuilt_ms - plain_ms) / plain_ms,
+        refreshed.0,
+        mean(refreshed),
     );
     Ok(())
 }

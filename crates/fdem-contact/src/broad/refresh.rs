@@ -1,0 +1,459 @@
+//! Partial refresh of the broad phase: new candidate pairs for the few bodies that drifted
+//! past half the skin, every other pair kept.
+//!
+//! A full build makes every pair that can come within the depth limit before any node
+//! has drifted half the skin: both ends of a pair move at most half a skin each. In a
+//! granular test a few rattling or spinning particles reach half a skin long before the
+//! rest, and a full build every time one does costs most of the step. Instead, the bodies
+//! with a node past half the skin (the dirty bodies) get new pairs, in both directions
+//! (their nodes against every face, every node against their faces), from the current
+//! positions, and take the current positions as their new reference.
+//!
+//! Why the kept and the new pairs still hold every contact until the next refresh: a pair
+//! found at a full build has both ends within half a skin of where they were then, as
+//! before. A pair found at a refresh has one end (the dirty body's) at its new reference,
+//! moving at most half a skin before it is refreshed again; the other end may already have
+//! drifted up to half a skin from its own reference when the pair was found and may drift
+//! that far again, so relative to the pair's positions it moves up to a whole skin. The
+//! relative motion is one and a half skins instead of one, and a refresh finds its pairs
+//! with the enlargement and the front reach of the last full build each grown by what the
+//! extra half skin adds ([`BroadPhase::refresh`]). When either end is refreshed again,
+//! the pair is found anew.
+//!
+//! The lists stay sorted by (owner body, triangle) per node, and the narrow phase only
+//! acts on faces within the depth limit of a node (every other candidate is skipped by an
+//! exact test), so a list with more candidates than a full build would give yields the
+//! same contacts and forces, bit for bit.
+
+use rayon::prelude::*;
+
+use super::{
+    BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, in_box, is_candidate,
+};
+use crate::ContactSurface;
+
+/// Items (surface nodes or triangles) binned by the cells their boxes overlap, on a dense
+/// grid of a fixed cell size over the boxes' union.
+#[derive(Default)]
+struct LocalGrid {
+    frame: Option<Frame>,
+    dims: [i64; 3],
+    /// Row starts of the cells' items in `items` (one more than the cells).
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+/// The number of cells of a box of `dims` cells, `None` on overflow.
+fn cell_count(dims: [i64; 3]) -> Option<i64> {
+    dims.iter().try_fold(1i64, |acc, &d| acc.checked_mul(d))
+}
+
+impl LocalGrid {
+    /// Bins every `(item, box)` into the cells its box overlaps, items in the given order
+    /// within a cell; `None` when a box overlaps more than [`MAX_CELLS_PER_BOX`] cells or
+    /// the grid would have more than [`MAX_CELLS`] (a body torn far out of shape, or
+    /// items spread over a region far larger than the cells: the caller rebuilds
+    /// everything instead).
+    fn build(cell_size: f64, boxes: &[(u32, [f64; 6])]) -> Option<LocalGrid> {
+        if boxes.is_empty() {
+            return Some(LocalGrid::default());
+        }
+        let mut union = [f64::INFINITY; 6];
+        for (_, bx) in boxes {
+            for d in 0..3 {
+                union[d] = union[d].min(bx[d]);
+                union[d + 3] = union[d + 3].min(-bx[d + 3]);
+            }
+        }
+        let frame = Frame {
+            origin: [union[0], union[1], union[2]],
+            inv: 1.0 / cell_size,
+        };
+        let top = frame.cell([-union[3], -union[4], -union[5]]);
+        let dims = top.map(|t| t.saturating_add(1).max(1));
+        let cells = cell_count(dims).filter(|&c| c <= MAX_CELLS)? as usize;
+        let mut grid = LocalGrid {
+            frame: Some(frame),
+            dims,
+            start: vec![0; cells + 1],
+            items: Vec::new(),
+        };
+        // Counting sort by cell (two passes over the boxes), items in their order within a
+        // cell.
+        for (_, bx) in boxes {
+            let (lo, hi) = grid.range(bx);
+            if cell_count([0, 1, 2].map(|d| hi[d] - lo[d] + 1))? > MAX_CELLS_PER_BOX {
+                return None;
+            }
+            let start = &mut grid.start;
+            for_each_cell(dims, lo, hi, |c| start[c + 1] += 1);
+        }
+        for c in 1..grid.start.len() {
+            grid.start[c] += grid.start[c - 1];
+        }
+        let mut cursor = grid.start.clone();
+        grid.items = vec![0; grid.start[cells] as usize];
+        for &(item, ref bx) in boxes {
+            let (lo, hi) = grid.range(bx);
+            let items = &mut grid.items;
+            for_each_cell(dims, lo, hi, |c| {
+                items[cursor[c] as usize] = item;
+                cursor[c] += 1;
+            });
+        }
+        Some(grid)
+    }
+
+    /// The cells a box overlaps, clamped to the grid.
+    #[inline]
+    fn range(&self, bx: &[f64; 6]) -> ([i64; 3], [i64; 3]) {
+        let frame = self.frame.expect("a grid with items has a frame");
+        let lo = frame.cell([bx[0], bx[1], bx[2]]);
+        let hi = frame.cell([bx[3], bx[4], bx[5]]);
+        (
+            [0, 1, 2].map(|d| lo[d].max(0)),
+            [0, 1, 2].map(|d| hi[d].min(self.dims[d] - 1)),
+        )
+    }
+
+    /// The items binned in the cell that holds `x`.
+    #[inline]
+    fn at(&self, x: [f64; 3]) -> &[u32] {
+        let Some(frame) = self.frame else {
+            return &[];
+        };
+        let c = frame.cell(x);
+        if (0..3).any(|d| c[d] < 0 || c[d] >= self.dims[d]) {
+            return &[];
+        }
+        let c = (c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])) as usize;
+        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// Calls `f` with the items of every cell box `bx` overlaps (an item binned in
+    /// several of those cells comes several times).
+    #[inline]
+    fn for_each_overlapping(&self, bx: &[f64; 6], mut f: impl FnMut(u32)) {
+        if self.frame.is_none() {
+            return;
+        }
+        let (lo, hi) = self.range(bx);
+        for_each_cell(self.dims, lo, hi, |c| {
+            let row = self.start[c] as usize..self.start[c + 1] as usize;
+            self.items[row].iter().for_each(|&item| f(item));
+        });
+    }
+
+    fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+}
+
+/// Calls `f` with the index of every cell from `lo` to `hi` (inclusive; empty when a
+/// bound is below the other) of a dense grid of `dims` cells, x fastest.
+#[inline(always)]
+fn for_each_cell(dims: [i64; 3], lo: [i64; 3], hi: [i64; 3], mut f: impl FnMut(usize)) {
+    for k in lo[2]..=hi[2] {
+        for j in lo[1]..=hi[1] {
+            let row = dims[0] * (j + dims[1] * k);
+            for i in lo[0]..=hi[0] {
+                f((i + row) as usize);
+            }
+        }
+    }
+}
+
+/// A refresh gives up (and the model rebuilds everything) when its grid would have more
+/// cells than this ...
+const MAX_CELLS: i64 = 1 << 24;
+
+/// ... or when one box overlaps more cells than this; a face at a full build overlaps at most about 10^3 (the cell size is
+/// at least an eighth of the largest enlarged face box).
+const MAX_CELLS_PER_BOX: i64 = 1 << 12;
+
+/// The box of a triangle at `positions`, grown by `e` on every side.
+#[inline(always)]
+fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
+    let [a, b, c] = face;
+    let mut bx = [0.0; 6];
+    for d in 0..3 {
+        bx[d] = a[d].min(b[d]).min(c[d]) - e;
+        bx[d + 3] = a[d].max(b[d]).max(c[d]) + e;
+    }
+    bx
+}
+
+/// The reaches of a refresh: the last full build's enlargement and front reach, each grown
+/// by what the extra half skin of relative motion adds (see the module documentation).
+#[derive(Clone, Copy, Debug)]
+struct RefreshReach {
+    enlargement: f64,
+    front: f64,
+}
+
+impl RefreshReach {
+    fn of(broad: &BroadPhase, skin: f64) -> RefreshReach {
+        RefreshReach {
+            enlargement: broad.enlargement + 0.5 * skin,
+            front: broad.front + FRONT_SKINS * 0.5 * skin,
+        }
+    }
+}
+
+impl BroadPhase {
+    /// Per body, whether one of its surface nodes lies farther than `half` from its
+    /// reference position; and how many surface nodes those bodies have.
+    pub(crate) fn drifted_bodies(
+        &self,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        half: f64,
+    ) -> (Vec<bool>, usize) {
+        let n_bodies = surface
+            .node_body
+            .iter()
+            .chain(&surface.triangle_body)
+            .map(|&b| b as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut dirty = vec![false; n_bodies];
+        for (k, (&g, &body)) in surface
+            .surface_nodes
+            .iter()
+            .zip(&surface.node_body)
+            .enumerate()
+        {
+            let [dx, dy, dz] = std::array::from_fn(|d| positions[g][d] - self.reference[k][d]);
+            if dx * dx + dy * dy + dz * dz > half * half {
+                dirty[body as usize] = true;
+            }
+        }
+        let nodes = surface
+            .node_body
+            .iter()
+            .filter(|&&b| dirty[b as usize])
+            .count();
+        (dirty, nodes)
+    }
+
+    /// The enlargement and the front reach a refresh finds its pairs with (m).
+    pub(crate) fn refresh_reaches(&self, skin: f64) -> (f64, f64) {
+        let r = RefreshReach::of(self, skin);
+        (r.enlargement, r.front)
+    }
+
+    /// Surface nodes refreshed since the last full build (counting a node once per
+    /// refresh).
+    pub(crate) fn refreshed_nodes(&self) -> usize {
+        self.refreshed_nodes
+    }
+
+    /// Replaces every candidate pair with a node or a face on a body marked in `dirty` by
+    /// the pairs at the current positions (the refresh reaches, [`RefreshReach`]) and
+    /// resets those bodies' reference positions; every other pair is kept. `dirty` has an
+    /// entry per body; a full build must have come first. Returns `false`, changing
+    /// nothing, when a box is too large to bin ([`MAX_CELLS_PER_BOX`]).
+    pub(crate) fn refresh(
+        &mut self,
+        positions: &[[f64; 3]],
+        surface: &ContactSurface,
+        dirty: &[bool],
+        skin: f64,
+        two_sided: impl Fn(u32) -> bool + Sync,
+    ) -> bool {
+        let reach = RefreshReach::of(self, skin);
+        let e = reach.enlargement;
+        let dirty_nodes: Vec<u32> = (0..surface.surface_nodes.len() as u32)
+            .filter(|&k| dirty[surface.node_body[k as usize] as usize])
+            .collect();
+        // Each dirty node binned by the box it reaches, so that a triangle looks only at
+        // the cells of its own box; each dirty face by its enlarged box.
+        let node_boxes: Vec<(u32, [f64; 6])> = dirty_nodes
+            .iter()
+            .map(|&k| {
+                let x = positions[surface.surface_nodes[k as usize]];
+                (
+                    k,
+                    [x[0] - e, x[1] - e, x[2] - e, x[0] + e, x[1] + e, x[2] + e],
+                )
+            })
+            .collect();
+        let face_boxes: Vec<(u32, [f64; 6])> = (0..surface.triangles.len())
+            .filter(|&t| dirty[surface.triangle_body[t] as usize])
+            .map(|t| {
+                let face = surface.triangles[t].map(|i| positions[i]);
+                (t as u32, grown_box(face, e))
+            })
+            .collect();
+        let node_grid = LocalGrid::build(self.cell_size, &node_boxes);
+        let face_grid = LocalGrid::build(self.cell_size, &face_boxes);
+        let (Some(node_grid), Some(face_grid)) = (node_grid, face_grid) else {
+            return false;
+        };
+        let mut found = faces_of_dirty_nodes(positions, surface, &node_grid, reach, &two_sided);
+        found.extend(nodes_of_dirty_faces(
+            positions, surface, dirty, &face_grid, reach, &two_sided,
+        ));
+        self.merge_refreshed(surface, dirty, found);
+        for &k in &dirty_nodes {
+            self.reference[k as usize] = positions[surface.surface_nodes[k as usize]];
+        }
+        self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
+        self.refreshed_nodes += dirty_nodes.len();
+        self.refreshes += 1;
+        true
+    }
+}
+
+/// The pairs of the dirty nodes (binned in `grid`) with every face of another body, one
+/// list per fixed chunk of triangles (a pair may be listed twice).
+fn faces_of_dirty_nodes(
+    positions: &[[f64; 3]],
+    surface: &ContactSurface,
+    grid: &LocalGrid,
+    reach: RefreshReach,
+    two_sided: &(impl Fn(u32) -> bool + Sync),
+) -> Vec<Vec<(u32, Candidate)>> {
+    if grid.is_empty() {
+        return Vec::new();
+    }
+    let e = reach.enlargement;
+    let (reach2, front2) = (e * e, reach.front * reach.front);
+    let n_chunks = surface.triangles.len().div_ceil(TRIANGLE_CHUNK);
+    (0..n_chunks)
+        .into_par_iter()
+        .map(|chunk| {
+            let mut pairs = Vec::new();
+            let first = chunk * TRIANGLE_CHUNK;
+            let last = (first + TRIANGLE_CHUNK).min(surface.triangles.len());
+            for t in first..last {
+                let ids = surface.triangles[t];
+                let owner = surface.triangle_body[t];
+                let face = ids.map(|i| positions[i]);
+                let bx = grown_box(face, e);
+                let sided = two_sided(owner);
+                grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
+                    let x = positions[surface.surface_nodes[k as usize]];
+                    if surface.node_body[k as usize] != owner
+                        && in_box(&bx, x)
+                        && is_candidate(x, face, reach2, front2, sided)
+                    {
+                        pairs.push((k, candidate(ids, t, owner)));
+                    }
+                });
+            }
+            pairs
+        })
+        .collect()
+}
+
+/// The pairs of every node of a clean body with the faces of the dirty bodies (binned in
+/// `grid`), one list per fixed chunk of surface nodes.
+fn nodes_of_dirty_faces(
+    positions: &[[f64; 3]],
+    surface: &ContactSurface,
+    dirty: &[bool],
+    grid: &LocalGrid,
+    reach: RefreshReach,
+    two_sided: &(impl Fn(u32) -> bool + Sync),
+) -> Vec<Vec<(u32, Candidate)>> {
+    if grid.is_empty() {
+        return Vec::new();
+    }
+    let e = reach.enlargement;
+    let (reach2, front2) = (e * e, reach.front * reach.front);
+    let n = surface.surface_nodes.len();
+    (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|chunk| {
+            let mut pairs = Vec::new();
+            for k in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+                let body = surface.node_body[k];
+                if dirty[body as usize] {
+                    continue;
+                }
+                let x = positions[surface.surface_nodes[k]];
+                for &t in grid.at(x) {
+                    let t = t as usize;
+                    let owner = surface.triangle_body[t];
+                    let ids = surface.triangles[t];
+                    let face = ids.map(|i| positions[i]);
+                    if owner != body
+                        && in_box(&grown_box(face, e), x)
+                        && is_candidate(x, face, reach2, front2, two_sided(owner))
+                    {
+                        pairs.push((k as u32, candidate(ids, t, owner)));
+                    }
+                }
+            }
+            pairs
+        })
+        .collect()
+}
+
+impl BroadPhase {
+    /// Rewrites the lists of every chunk of nodes that a refresh touches: a dirty node's
+    /// list becomes its new pairs; a clean node's list keeps its pairs with clean faces
+    /// and gains its new pairs with dirty faces; each sorted by (owner body, triangle).
+    fn merge_refreshed(
+        &mut self,
+        surface: &ContactSurface,
+        dirty: &[bool],
+        found: Vec<Vec<(u32, Candidate)>>,
+    ) {
+        let n = surface.surface_nodes.len();
+        let mut new_by_chunk: Vec<Vec<(u32, Candidate)>> = vec![Vec::new(); n.div_ceil(CHUNK)];
+        for &(k, c) in found.iter().flatten() {
+            new_by_chunk[k as usize / CHUNK].push((k, c));
+        }
+        let node_body = &surface.node_body;
+        self.chunk_cands
+            .par_iter_mut()
+            .zip(self.chunk_starts.par_iter_mut())
+            .zip(new_by_chunk.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, ((cands, starts), new))| {
+                let nodes = chunk * CHUNK..((chunk + 1) * CHUNK).min(n);
+                let touched = !new.is_empty()
+                    || nodes.clone().any(|k| dirty[node_body[k] as usize])
+                    || cands.iter().any(|c| dirty[c.body as usize]);
+                if !touched {
+                    return;
+                }
+                new.sort_unstable_by_key(|&(k, c)| (k, c.body, c.triangle));
+                new.dedup();
+                let mut out = Vec::with_capacity(cands.len() + new.len());
+                let mut out_starts = Vec::with_capacity(starts.len());
+                out_starts.push(0);
+                let mut next = new.iter().peekable();
+                for (i, k) in nodes.enumerate() {
+                    let begin = out.len();
+                    if !dirty[node_body[k] as usize] {
+                        out.extend(
+                            cands[starts[i]..starts[i + 1]]
+                                .iter()
+                                .filter(|c| !dirty[c.body as usize]),
+                        );
+                    }
+                    while let Some(&(_, c)) = next.next_if(|&&(node, _)| node as usize == k) {
+                        out.push(c);
+                    }
+                    out[begin..].sort_unstable_by_key(|c| (c.body, c.triangle));
+                    out_starts.push(out.len());
+                }
+                *cands = out;
+                *starts = out_starts;
+            });
+    }
+}
+
+/// The candidate record of triangle `t` (node ids fit in u32: `ContactSurface::validate`
+/// checks the node count).
+#[inline(always)]
+fn candidate(ids: [usize; 3], t: usize, owner: u32) -> Candidate {
+    Candidate {
+        nodes: ids.map(|i| i as u32),
+        triangle: t as u32,
+        body: owner,
+    }
+}
