@@ -7,9 +7,10 @@
 //!   rotated into the current tangent plane, Coulomb cap `|F_s| <= mu F_n` with cut-back.
 //!   Deviation from the paper: its `|k_n d_n - f_vd|` is replaced by a clamp at zero, so
 //!   the normal force never attracts.
-//! - **Detection** ([`ContactModel`]): a spatial-hash broad phase over the surface
-//!   triangles with a Verlet skin (rebuilt only when a surface node has moved more than
-//!   half the margin), a symmetric node-to-face narrow phase (nodes of A against faces of
+//! - **Detection** ([`ContactModel`]): a grid broad phase over the surface nodes with a
+//!   Verlet skin (renewed only when a surface node has moved more than half the margin:
+//!   the pairs of the bodies that drifted, or all of them, as a [`RefreshPolicy`]
+//!   decides), a symmetric node-to-face narrow phase (nodes of A against faces of
 //!   B and nodes of B against faces of A, so edges and faces cannot pass through each
 //!   other), and rigid walls ([`Wall`]: planes and cylinders at a prescribed
 //!   constant velocity).

@@ -78,7 +78,7 @@ pub const DEPTH_LIMIT_GROWTH: f64 = 3.0;
 /// How far a node may move relative to a counterpart in one step before a crossing could
 /// go unseen (m), [`TUNNELLING_FRACTION`] of the scale on which the narrow phase sees it.
 ///
-/// The broad phase is rebuilt at the evaluation itself once a node has drifted half the
+/// The broad phase is renewed at the evaluation itself once a node has drifted half the
 /// margin, so a long step never leaves stale candidates; what a long step can hide is the
 /// crossing itself. Against a sheet a new contact deeper than half the margin is taken
 /// for a fold artefact and discarded, so a node that crossed the sheet farther would pass
@@ -88,7 +88,8 @@ pub const DEPTH_LIMIT_GROWTH: f64 = 3.0;
 /// its contact is seen: the solid reach is half the depth limit. Pairs outside the
 /// candidate lists are at least the depth limit apart (candidate boxes are enlarged by
 /// margin plus depth limit, and each node drifts less than half the margin between
-/// builds), so they cannot meet while no two nodes approach by more than that in a step.
+/// builds; a partial refresh enlarges its boxes by what the pair's extra relative motion
+/// can add), so they cannot meet while no two nodes approach by more than that in a step.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct StepReach {
     /// Against a sheet's face (m).
