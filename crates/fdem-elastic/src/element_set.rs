@@ -5,9 +5,9 @@ use nalgebra::DMatrix;
 use crate::ElasticError;
 use crate::kernels::{
     EDGES, Lame, TetRef, element_time_step, reference_stiffness, tet4_energy, tet4_stress,
-    tet10_add_forces, tet10_energy, tet10_stress,
+    tet10_energy, tet10_stress,
 };
-use crate::lanes::{Path, Tet4Block, add_block_forces};
+use crate::lanes::{Linear, Path, Quadratic, Tet4Block, Tet10Block, add_block_forces};
 use crate::mat3::{Mat3, cofactor, det, dot, sub, transpose};
 use crate::material::Material;
 
@@ -71,8 +71,9 @@ enum Elements {
 /// `Send + Sync`; bodies can be processed in parallel.
 ///
 /// Element storage is compact and contiguous: node ids as `u32` plus three gradient
-/// vectors and the volume, 96 bytes per linear and 120 bytes per quadratic element; linear
-/// elements are kept a second time in the lane kernel's blocks (98 bytes per element).
+/// vectors and the volume, 96 bytes per linear and 120 bytes per quadratic element; the
+/// elements are kept a second time in the lane kernel's blocks (98 bytes per linear and
+/// 122 bytes per quadratic element).
 #[derive(Debug, Clone)]
 pub struct ElementSet {
     material: Material,
@@ -81,7 +82,9 @@ pub struct ElementSet {
     n_nodes: usize,
     elements: Elements,
     /// The linear elements again, in blocks for the lane kernel (empty for 10-node sets).
-    blocks: Vec<Tet4Block>,
+    blocks4: Vec<Tet4Block>,
+    /// The quadratic elements again, in blocks for the lane kernel (empty for 4-node sets).
+    blocks10: Vec<Tet10Block>,
     time_steps: Vec<f64>,
     stable_time_step: f64,
 }
@@ -155,9 +158,9 @@ impl ElementSet {
             }
         };
         let stable_time_step = time_steps.iter().copied().fold(f64::INFINITY, f64::min);
-        let blocks = match &elements {
-            Elements::Linear(els) => Tet4Block::blocks(els),
-            Elements::Quadratic(_) => Vec::new(),
+        let (blocks4, blocks10) = match &elements {
+            Elements::Linear(els) => (Tet4Block::blocks(els), Vec::new()),
+            Elements::Quadratic(els) => (Vec::new(), Tet10Block::blocks(els)),
         };
         Ok(Self {
             material: *material,
@@ -165,7 +168,8 @@ impl ElementSet {
             kind,
             n_nodes,
             elements,
-            blocks,
+            blocks4,
+            blocks10,
             time_steps,
             stable_time_step,
         })
@@ -362,9 +366,9 @@ impl ElementSet {
         self.check_len("forces", forces.len())?;
         match &self.elements {
             Elements::Linear(els) => {
-                add_block_forces(
+                add_block_forces::<Linear, 4>(
                     Path::best(),
-                    &self.blocks,
+                    &self.blocks4,
                     els,
                     self.lame,
                     positions,
@@ -372,9 +376,14 @@ impl ElementSet {
                 )?;
             }
             Elements::Quadratic(els) => {
-                for (e, el) in els.iter().enumerate() {
-                    tet10_add_forces(el, self.lame, positions, forces, e)?;
-                }
+                add_block_forces::<Quadratic, 10>(
+                    Path::best(),
+                    &self.blocks10,
+                    els,
+                    self.lame,
+                    positions,
+                    forces,
+                )?;
             }
         }
         Ok(())

@@ -17,8 +17,8 @@ use nalgebra::SMatrix;
 
 use crate::ElasticError;
 use crate::mat3::{
-    IDENTITY, Mat3, Real, add_outer, cofactor, cross, det, dot, mul, mul_tn, mul_vec, scale, sub,
-    transpose,
+    IDENTITY, Mat3, Real, add_outer, cofactor, det, dot, mul, mul_tn, mul_vec, scale, sub,
+    transpose, vcross, vsub,
 };
 use crate::material::Material;
 use crate::polar::polar_rotation_positive;
@@ -39,14 +39,20 @@ impl<const N: usize> TetRef<N> {
     /// `g_0..g_3`.
     #[inline(always)]
     pub fn grads4(&self) -> [[f64; 3]; 4] {
-        let [g1, g2, g3] = self.grad;
-        let g0 = [
-            -(g1[0] + g2[0] + g3[0]),
-            -(g1[1] + g2[1] + g3[1]),
-            -(g1[2] + g2[2] + g3[2]),
-        ];
-        [g0, g1, g2, g3]
+        grads4(&self.grad)
     }
+}
+
+/// `g_0..g_3` from `g_1, g_2, g_3`: `g_0 = -(g_1 + g_2 + g_3)`.
+#[inline(always)]
+pub(crate) fn grads4<T: Real>(grad: &[[T; 3]; 3]) -> [[T; 3]; 4] {
+    let [g1, g2, g3] = *grad;
+    let g0 = [
+        -(g1[0] + g2[0] + g3[0]),
+        -(g1[1] + g2[1] + g3[1]),
+        -(g1[2] + g2[2] + g3[2]),
+    ];
+    [g0, g1, g2, g3]
 }
 
 /// Local id of the mid-edge node between corners `c` and `d` (VTK_QUADRATIC_TETRA:
@@ -259,6 +265,36 @@ pub(crate) struct Tet10State {
     pub eps: [Mat3; 4],
 }
 
+/// `F` at the four corners (Q2) and at the centroid, `F_bar = (F_0 + F_1 + F_2 + F_3) / 4`,
+/// from the gathered positions `xs` (local order) and the gradients `g_0..g_3`.
+#[inline(always)]
+pub(crate) fn tet10_gradients<T: Real>(
+    xs: &[[T; 3]; 10],
+    g: &[[T; 3]; 4],
+) -> ([[[T; 3]; 3]; 4], [[T; 3]; 3]) {
+    let mut fc = [[[T::ZERO; 3]; 3]; 4];
+    for c in 0..4 {
+        for d in 0..4 {
+            if d == c {
+                continue;
+            }
+            // (Q2)
+            let a = vsub(xs[MID[c][d]], xs[c]);
+            let b = vsub(xs[d], xs[c]);
+            let four = T::splat(4.0);
+            let v = [four * a[0] - b[0], four * a[1] - b[1], four * a[2] - b[2]];
+            add_outer(&mut fc[c], v, g[d]);
+        }
+    }
+    let mut fbar = [[T::ZERO; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            fbar[i][j] = T::splat(0.25) * (fc[0][i][j] + fc[1][i][j] + fc[2][i][j] + fc[3][i][j]);
+        }
+    }
+    (fc, fbar)
+}
+
 /// Rotation and corner strains of a 10-node element; checks `det F > 0` at the centroid
 /// and at the 4 corners.
 #[inline(always)]
@@ -271,26 +307,7 @@ pub(crate) fn tet10_kinematics(
     for (xi, n) in xs.iter_mut().zip(el.nodes) {
         *xi = x[n as usize];
     }
-    let g = el.grads4();
-    let mut fc = [[[0.0; 3]; 3]; 4];
-    for (c, f) in fc.iter_mut().enumerate() {
-        for d in 0..4 {
-            if d == c {
-                continue;
-            }
-            // (Q2)
-            let a = sub(xs[MID[c][d]], xs[c]);
-            let b = sub(xs[d], xs[c]);
-            let v = [4.0 * a[0] - b[0], 4.0 * a[1] - b[1], 4.0 * a[2] - b[2]];
-            add_outer(f, v, g[d]);
-        }
-    }
-    let mut fbar = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            fbar[i][j] = 0.25 * (fc[0][i][j] + fc[1][i][j] + fc[2][i][j] + fc[3][i][j]);
-        }
-    }
+    let (fc, fbar) = tet10_gradients(&xs, &el.grads4());
     // The element is valid only if F is orientation-preserving at the centroid and at every
     // corner; report the smallest determinant.
     let dets = [
@@ -309,33 +326,46 @@ pub(crate) fn tet10_kinematics(
         det_min = det_min.min(d);
     }
     let r = rotation(&fbar, det_min, element)?;
-    let eps = [
-        corotated_strain(&r, &fc[0]),
-        corotated_strain(&r, &fc[1]),
-        corotated_strain(&r, &fc[2]),
-        corotated_strain(&r, &fc[3]),
-    ];
+    let eps = tet10_corner_strains(&r, &fc);
     Ok(Tet10State { xs, fbar, r, eps })
 }
 
-/// Corner stresses scaled by (Q3): `s_d = V (sigma_d + sum_c sigma_c) / 20`, and
-/// `sum_c sigma_c`.
+/// Co-rotated strains at the corners, `eps_c = sym(R^T F_c) - I`.
 #[inline(always)]
-fn tet10_smoothed_stresses(volume: f64, lame: Lame, eps: &[Mat3; 4]) -> ([Mat3; 4], Mat3) {
+pub(crate) fn tet10_corner_strains<T: Real>(
+    r: &[[T; 3]; 3],
+    fc: &[[[T; 3]; 3]; 4],
+) -> [[[T; 3]; 3]; 4] {
+    [
+        corotated_strain(r, &fc[0]),
+        corotated_strain(r, &fc[1]),
+        corotated_strain(r, &fc[2]),
+        corotated_strain(r, &fc[3]),
+    ]
+}
+
+/// Corner stresses scaled by (Q3): `s_d = V (sigma_d + sum_c sigma_c) / 20`, and
+/// `sum_c sigma_c`; `k = V / 20`.
+#[inline(always)]
+pub(crate) fn tet10_smoothed_stresses<T: Real>(
+    k: T,
+    lambda: T,
+    mu: T,
+    eps: &[[[T; 3]; 3]; 4],
+) -> ([[[T; 3]; 3]; 4], [[T; 3]; 3]) {
     let sig = [
-        Material::stress(lame.lambda, lame.mu, &eps[0]),
-        Material::stress(lame.lambda, lame.mu, &eps[1]),
-        Material::stress(lame.lambda, lame.mu, &eps[2]),
-        Material::stress(lame.lambda, lame.mu, &eps[3]),
+        Material::stress(lambda, mu, &eps[0]),
+        Material::stress(lambda, mu, &eps[1]),
+        Material::stress(lambda, mu, &eps[2]),
+        Material::stress(lambda, mu, &eps[3]),
     ];
-    let mut sum = [[0.0; 3]; 3];
+    let mut sum = [[T::ZERO; 3]; 3];
     for i in 0..3 {
         for j in 0..3 {
             sum[i][j] = sig[0][i][j] + sig[1][i][j] + sig[2][i][j] + sig[3][i][j];
         }
     }
-    let k = volume / 20.0;
-    let mut s = [[[0.0; 3]; 3]; 4];
+    let mut s = [[[T::ZERO; 3]; 3]; 4];
     for d in 0..4 {
         for i in 0..3 {
             for j in 0..3 {
@@ -346,43 +376,44 @@ fn tet10_smoothed_stresses(volume: f64, lame: Lame, eps: &[Mat3; 4]) -> ([Mat3; 
     (s, sum)
 }
 
-/// Forces `-R K_e u` of one 10-node tetrahedron, (Q4), in local node order.
+/// Forces `-R K_e u` of one 10-node tetrahedron, (Q4), in local node order, from the
+/// gradients `g_0..g_3`, the smoothed corner stresses `s` and the rotation `r`.
 #[inline(always)]
-pub(crate) fn tet10_corotational_forces(
-    el: &TetRef<10>,
-    lame: Lame,
-    st: &Tet10State,
-) -> [[f64; 3]; 10] {
-    let (s, _) = tet10_smoothed_stresses(el.volume, lame, &st.eps);
-    let g = el.grads4();
+pub(crate) fn tet10_corotational_forces<T: Real>(
+    g: &[[T; 3]; 4],
+    s: &[[[T; 3]; 3]; 4],
+    r: &[[T; 3]; 3],
+) -> [[T; 3]; 10] {
     // Rotate first: P_d = -R s_d, then every nodal force is a sum of P_d g_a.
+    let minus = T::splat(-1.0);
     let p = [
-        scale(&mul(&st.r, &s[0]), -1.0),
-        scale(&mul(&st.r, &s[1]), -1.0),
-        scale(&mul(&st.r, &s[2]), -1.0),
-        scale(&mul(&st.r, &s[3]), -1.0),
+        scale(&mul(r, &s[0]), minus),
+        scale(&mul(r, &s[1]), minus),
+        scale(&mul(r, &s[2]), minus),
+        scale(&mul(r, &s[3]), minus),
     ];
-    let mut psum = [[0.0; 3]; 3];
+    let mut psum = [[T::ZERO; 3]; 3];
     for i in 0..3 {
         for j in 0..3 {
             psum[i][j] = p[0][i][j] + p[1][i][j] + p[2][i][j] + p[3][i][j];
         }
     }
-    let mut out = [[0.0; 3]; 10];
+    let four = T::splat(4.0);
+    let mut out = [[T::ZERO; 3]; 10];
     for a in 0..4 {
         // f_a = (4 P_a - sum P) g_a
         let u = mul_vec(&p[a], g[a]);
         let w = mul_vec(&psum, g[a]);
-        out[a] = [4.0 * u[0] - w[0], 4.0 * u[1] - w[1], 4.0 * u[2] - w[2]];
+        out[a] = [four * u[0] - w[0], four * u[1] - w[1], four * u[2] - w[2]];
     }
     for (m, &(a, b)) in EDGES.iter().enumerate() {
         // f_ab = 4 (P_b g_a + P_a g_b)
         let u = mul_vec(&p[b], g[a]);
         let w = mul_vec(&p[a], g[b]);
         out[4 + m] = [
-            4.0 * (u[0] + w[0]),
-            4.0 * (u[1] + w[1]),
-            4.0 * (u[2] + w[2]),
+            four * (u[0] + w[0]),
+            four * (u[1] + w[1]),
+            four * (u[2] + w[2]),
         ];
     }
     out
@@ -400,7 +431,83 @@ pub(crate) fn tet10_corotational_forces(
 // At the centroid b_a = 0 for corners and b_ab = g_a + g_b for mid-edge nodes, and
 // tau = O(|u|^2), so the correction is second order: the tangent at rest is still K.
 
-/// Adds the elastic forces of one 10-node tetrahedron: (Q4) plus the correction (Q5).
+/// Adds the correction (Q5) to the forces `out` of [`tet10_corotational_forces`]; returns
+/// `det A`, which the caller must find finite and positive (else `out` is not valid).
+#[inline(always)]
+pub(crate) fn tet10_add_correction<T: Real>(
+    xs: &[[T; 3]; 10],
+    g: &[[T; 3]; 4],
+    fbar: &[[T; 3]; 3],
+    r: &[[T; 3]; 3],
+    out: &mut [[T; 3]; 10],
+) -> T {
+    // tau = sum_i (x_i - x_0) x r_i with r_i = -out_i (internal force); sum_i r_i = 0.
+    let mut tau = [T::ZERO; 3];
+    for (xi, fi) in xs[1..].iter().zip(&out[1..]) {
+        let d = vsub(*xi, xs[0]);
+        let c = vcross(d, *fi);
+        for k in 0..3 {
+            tau[k] = tau[k] - c[k];
+        }
+    }
+    // A = tr(V) I - V, V = F_bar R^T (symmetric positive definite; A is too).
+    let v = mul(fbar, &transpose(r));
+    let tr = v[0][0] + v[1][1] + v[2][2];
+    let mut a = [[T::ZERO; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            a[i][j] = T::splat(-0.5) * (v[i][j] + v[j][i]);
+        }
+        a[i][i] += tr;
+    }
+    // Z = A^{-1} tau = cof(A) tau / det(A) (A symmetric).
+    let det_a = det(&a);
+    let z = mul_vec(&cofactor(&a), tau);
+    let z = [z[0] / det_a, z[1] / det_a, z[2] / det_a];
+    // Force on node = -dW/dx_i = out_i + Z x (R b_i), b_ab = g_a + g_b.
+    let rg = [
+        mul_vec(r, g[0]),
+        mul_vec(r, g[1]),
+        mul_vec(r, g[2]),
+        mul_vec(r, g[3]),
+    ];
+    for (m, &(ea, eb)) in EDGES.iter().enumerate() {
+        let rb = [
+            rg[ea][0] + rg[eb][0],
+            rg[ea][1] + rg[eb][1],
+            rg[ea][2] + rg[eb][2],
+        ];
+        let c = vcross(z, rb);
+        let o = &mut out[4 + m];
+        o[0] += c[0];
+        o[1] += c[1];
+        o[2] += c[2];
+    }
+    det_a
+}
+
+/// The node forces of one 10-node tetrahedron, (Q4) plus the correction (Q5), in local
+/// node order.
+#[inline(always)]
+pub(crate) fn tet10_forces(
+    el: &TetRef<10>,
+    lame: Lame,
+    x: &[[f64; 3]],
+    element: usize,
+) -> Result<[[f64; 3]; 10], ElasticError> {
+    let st = tet10_kinematics(el, x, element)?;
+    let g = el.grads4();
+    let (s, _) = tet10_smoothed_stresses(el.volume / 20.0, lame.lambda, lame.mu, &st.eps);
+    let mut out = tet10_corotational_forces(&g, &s, &st.r);
+    let det_a = tet10_add_correction(&st.xs, &g, &st.fbar, &st.r, &mut out);
+    if !(det_a.is_finite() && det_a > 0.0) {
+        // A is positive definite whenever det F > 0; this only triggers on overflow.
+        return Err(ElasticError::PolarDecomposition { element });
+    }
+    Ok(out)
+}
+
+/// Adds the elastic forces of one 10-node tetrahedron ([`tet10_forces`]).
 #[inline(always)]
 pub(crate) fn tet10_add_forces(
     el: &TetRef<10>,
@@ -409,55 +516,7 @@ pub(crate) fn tet10_add_forces(
     forces: &mut [[f64; 3]],
     element: usize,
 ) -> Result<(), ElasticError> {
-    let st = tet10_kinematics(el, x, element)?;
-    let mut out = tet10_corotational_forces(el, lame, &st);
-    // tau = sum_i (x_i - x_0) x r_i with r_i = -out_i (internal force); sum_i r_i = 0.
-    let mut tau = [0.0; 3];
-    for (xi, fi) in st.xs[1..].iter().zip(&out[1..]) {
-        let d = sub(*xi, st.xs[0]);
-        let c = cross(d, *fi);
-        tau[0] -= c[0];
-        tau[1] -= c[1];
-        tau[2] -= c[2];
-    }
-    // A = tr(V) I - V, V = F_bar R^T (symmetric positive definite; A is too).
-    let v = mul(&st.fbar, &transpose(&st.r));
-    let tr = v[0][0] + v[1][1] + v[2][2];
-    let mut a = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            a[i][j] = -0.5 * (v[i][j] + v[j][i]);
-        }
-        a[i][i] += tr;
-    }
-    // Z = A^{-1} tau = cof(A) tau / det(A) (A symmetric).
-    let det_a = det(&a);
-    if !(det_a.is_finite() && det_a > 0.0) {
-        // A is positive definite whenever det F > 0; this only triggers on overflow.
-        return Err(ElasticError::PolarDecomposition { element });
-    }
-    let z = mul_vec(&cofactor(&a), tau);
-    let z = [z[0] / det_a, z[1] / det_a, z[2] / det_a];
-    // Force on node = -dW/dx_i = out_i + Z x (R b_i), b_ab = g_a + g_b.
-    let g = el.grads4();
-    let rg = [
-        mul_vec(&st.r, g[0]),
-        mul_vec(&st.r, g[1]),
-        mul_vec(&st.r, g[2]),
-        mul_vec(&st.r, g[3]),
-    ];
-    for (m, &(ea, eb)) in EDGES.iter().enumerate() {
-        let rb = [
-            rg[ea][0] + rg[eb][0],
-            rg[ea][1] + rg[eb][1],
-            rg[ea][2] + rg[eb][2],
-        ];
-        let c = cross(z, rb);
-        let o = &mut out[4 + m];
-        o[0] += c[0];
-        o[1] += c[1];
-        o[2] += c[2];
-    }
+    let out = tet10_forces(el, lame, x, element)?;
     scatter(&el.nodes, out, forces);
     Ok(())
 }
@@ -471,7 +530,7 @@ pub(crate) fn tet10_energy(
     element: usize,
 ) -> Result<f64, ElasticError> {
     let st = tet10_kinematics(el, x, element)?;
-    let (s, _) = tet10_smoothed_stresses(el.volume, lame, &st.eps);
+    let (s, _) = tet10_smoothed_stresses(el.volume / 20.0, lame.lambda, lame.mu, &st.eps);
     Ok(0.5 * (0..4).map(|d| ddot(&st.eps[d], &s[d])).sum::<f64>())
 }
 
@@ -485,7 +544,7 @@ pub(crate) fn tet10_stress(
     element: usize,
 ) -> Result<[f64; 6], ElasticError> {
     let st = tet10_kinematics(el, x, element)?;
-    let (_, sum) = tet10_smoothed_stresses(el.volume, lame, &st.eps);
+    let (_, sum) = tet10_smoothed_stresses(el.volume / 20.0, lame.lambda, lame.mu, &st.eps);
     Ok(rotate_to_voigt(&st.r, &scale(&sum, 0.25)))
 }
 
@@ -729,7 +788,8 @@ mod tests {
             .map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
             .collect();
         let st = tet10_kinematics(&el, &x, 0).unwrap();
-        let f = tet10_corotational_forces(&el, lame, &st);
+        let (s, _) = tet10_smoothed_stresses(el.volume / 20.0, lame.lambda, lame.mu, &st.eps);
+        let f = tet10_corotational_forces(&el.grads4(), &s, &st.r);
         let k = reference_stiffness(&el, lame);
         let mut max_err: f64 = 0.0;
         let mut max_f: f64 = 0.0;

@@ -1,6 +1,6 @@
-//! Linear tetrahedra several at a time: blocks of [`LANES`] elements whose reference data
-//! is stored lane by lane (structure of arrays within a block), evaluated with the
-//! operations of [`crate::kernels`] on vectors of lanes.
+//! Tetrahedra several at a time: blocks of [`LANES`] elements (linear or quadratic) whose
+//! reference data is stored lane by lane (structure of arrays within a block), evaluated
+//! with the operations of [`crate::kernels`] on vectors of lanes.
 //!
 //! # Same result as one element at a time
 //! Every lane runs the operations of the one-element kernel in the same order: the 3x3
@@ -14,10 +14,11 @@
 //! code path (tested).
 //!
 //! # Fallback
-//! A block with an element that is inverted, flat or not finite, or whose stretch needs
-//! the scaled-Newton phase of the polar decomposition (far outside elastic strains), is
-//! evaluated one element at a time instead, which also names the failing element. The
-//! fallback happens before the block adds anything, so it changes nothing.
+//! A block with an element that is inverted, flat or not finite (for a 10-node element at
+//! its centroid or any corner), whose stretch needs the scaled-Newton phase of the polar
+//! decomposition (far outside elastic strains), or whose energy correction (Q5) cannot be
+//! solved, is evaluated one element at a time instead, which also names the failing
+//! element. The fallback happens before the block adds anything, so it changes nothing.
 //!
 //! # Code paths
 //! The same source is compiled for the baseline instruction set and, on x86-64, with
@@ -27,10 +28,14 @@
 // Lane loops index several arrays at once: an index reads best.
 #![allow(clippy::needless_range_loop)]
 
-use std::ops::{Add, AddAssign, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 use crate::ElasticError;
-use crate::kernels::{Lame, TetRef, scatter, tet4_add_forces, tet4_forces, tet4_gradient};
+use crate::kernels::{
+    Lame, TetRef, grads4, scatter, tet4_add_forces, tet4_forces, tet4_gradient,
+    tet10_add_correction, tet10_add_forces, tet10_corner_strains, tet10_corotational_forces,
+    tet10_gradients, tet10_smoothed_stresses,
+};
 use crate::mat3::{IDENTITY, Real, det, gram, mul};
 use crate::polar::{CONVERGED2, MAX_NS, NS_REGION2};
 
@@ -76,6 +81,14 @@ impl Mul for V {
     }
 }
 
+impl Div for V {
+    type Output = V;
+    #[inline(always)]
+    fn div(self, o: V) -> V {
+        self.zip(o, |a, b| a / b)
+    }
+}
+
 impl Neg for V {
     type Output = V;
     #[inline(always)]
@@ -105,12 +118,12 @@ impl Real for V {
 
 type M = [[V; 3]; 3];
 
-/// Reference data of up to [`LANES`] linear elements, lane by lane. Unused lanes repeat
-/// lane 0 (so that they compute finite values) and are never added to the nodes.
+/// Reference data of up to [`LANES`] elements of `N` nodes, lane by lane. Unused lanes
+/// repeat lane 0 (so that they compute finite values) and are never added to the nodes.
 #[derive(Clone, Debug)]
-pub(crate) struct Tet4Block {
+pub(crate) struct Block<const N: usize> {
     /// Node ids of each lane's element.
-    nodes: [[u32; 4]; LANES],
+    nodes: [[u32; N]; LANES],
     /// `grad[a][k]`: component `k` of `g_(a+1)`, per lane.
     grad: M,
     /// Rest volumes.
@@ -121,15 +134,20 @@ pub(crate) struct Tet4Block {
     len: usize,
 }
 
-impl Tet4Block {
+/// A block of linear elements.
+pub(crate) type Tet4Block = Block<4>;
+/// A block of quadratic elements.
+pub(crate) type Tet10Block = Block<10>;
+
+impl<const N: usize> Block<N> {
     /// The blocks of `elements`, in order: [`LANES`] per block, the last one partial.
-    pub(crate) fn blocks(elements: &[TetRef<4>]) -> Vec<Tet4Block> {
+    pub(crate) fn blocks(elements: &[TetRef<N>]) -> Vec<Block<N>> {
         elements
             .chunks(LANES)
             .enumerate()
             .map(|(b, els)| {
-                let mut block = Tet4Block {
-                    nodes: [[0; 4]; LANES],
+                let mut block = Block {
+                    nodes: [[0; N]; LANES],
                     grad: [[V::ZERO; 3]; 3],
                     volume: V::ZERO,
                     first: b * LANES,
@@ -149,7 +167,43 @@ impl Tet4Block {
             })
             .collect()
     }
+
+    /// The current positions of every lane's nodes, lane by lane, in local node order.
+    #[inline(always)]
+    fn gather(&self, x: &[[f64; 3]]) -> [[V; 3]; N] {
+        let mut xs = [[V::ZERO; 3]; N];
+        for l in 0..LANES {
+            for (a, &n) in self.nodes[l].iter().enumerate() {
+                let p = x[n as usize];
+                for k in 0..3 {
+                    xs[a][k].0[l] = p[k];
+                }
+            }
+        }
+        xs
+    }
 }
+
+/// An element kind the lane kernel evaluates: the node forces of a whole block, and of
+/// one element (the fallback, which also names a failing element).
+pub(crate) trait LaneKernel<const N: usize> {
+    /// The node forces of every lane of `b`, in local node order; `None` when a lane needs
+    /// the one-element kernel (see the module documentation).
+    fn block_forces(b: &Block<N>, x: &[[f64; 3]], lambda: V, mu: V) -> Option<[[V; 3]; N]>;
+    /// Adds the forces of element `e` to `forces`.
+    fn add_one(
+        el: &TetRef<N>,
+        lame: Lame,
+        x: &[[f64; 3]],
+        forces: &mut [[f64; 3]],
+        e: usize,
+    ) -> Result<(), ElasticError>;
+}
+
+/// Linear 4-node tetrahedra ([`crate::kernels::tet4_forces`]).
+pub(crate) struct Linear;
+/// Quadratic 10-node tetrahedra ([`crate::kernels::tet10_forces`]).
+pub(crate) struct Quadratic;
 
 /// Which compilation of the block kernel to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -198,22 +252,22 @@ impl Path {
 
 /// Adds the elastic forces of `blocks` (the blocks of `elements`) to `forces`, on `path`.
 /// Same contract and errors as the one-element kernel, element by element.
-pub(crate) fn add_block_forces(
+pub(crate) fn add_block_forces<K: LaneKernel<N>, const N: usize>(
     path: Path,
-    blocks: &[Tet4Block],
-    elements: &[TetRef<4>],
+    blocks: &[Block<N>],
+    elements: &[TetRef<N>],
     lame: Lame,
     x: &[[f64; 3]],
     forces: &mut [[f64; 3]],
 ) -> Result<(), ElasticError> {
     match path {
-        Path::Portable => add_all(blocks, elements, lame, x, forces),
+        Path::Portable => add_all::<K, N>(blocks, elements, lame, x, forces),
         // SAFETY: `Path::best` and `Path::available` offer these paths only when the
         // processor reports the feature.
         #[cfg(target_arch = "x86_64")]
-        Path::Avx2 => unsafe { add_all_avx2(blocks, elements, lame, x, forces) },
+        Path::Avx2 => unsafe { add_all_avx2::<K, N>(blocks, elements, lame, x, forces) },
         #[cfg(target_arch = "x86_64")]
-        Path::Avx512 => unsafe { add_all_avx512(blocks, elements, lame, x, forces) },
+        Path::Avx512 => unsafe { add_all_avx512::<K, N>(blocks, elements, lame, x, forces) },
     }
 }
 
@@ -222,14 +276,14 @@ macro_rules! add_all_with {
     ($name:ident, $feature:literal) => {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $feature)]
-        unsafe fn $name(
-            blocks: &[Tet4Block],
-            elements: &[TetRef<4>],
+        unsafe fn $name<K: LaneKernel<N>, const N: usize>(
+            blocks: &[Block<N>],
+            elements: &[TetRef<N>],
             lame: Lame,
             x: &[[f64; 3]],
             forces: &mut [[f64; 3]],
         ) -> Result<(), ElasticError> {
-            add_all(blocks, elements, lame, x, forces)
+            add_all::<K, N>(blocks, elements, lame, x, forces)
         }
     };
 }
@@ -239,19 +293,19 @@ add_all_with!(add_all_avx512, "avx512f");
 
 /// Every block, each one at a time when it cannot be done in lanes.
 #[inline(always)]
-fn add_all(
-    blocks: &[Tet4Block],
-    elements: &[TetRef<4>],
+fn add_all<K: LaneKernel<N>, const N: usize>(
+    blocks: &[Block<N>],
+    elements: &[TetRef<N>],
     lame: Lame,
     x: &[[f64; 3]],
     forces: &mut [[f64; 3]],
 ) -> Result<(), ElasticError> {
     let (lambda, mu) = (V::splat(lame.lambda), V::splat(lame.mu));
     for b in blocks {
-        match block_forces(b, x, lambda, mu) {
+        match K::block_forces(b, x, lambda, mu) {
             Some(fa) => {
                 for l in 0..b.len {
-                    let mut lane = [[0.0; 3]; 4];
+                    let mut lane = [[0.0; 3]; N];
                     for (a, node) in fa.iter().enumerate() {
                         for k in 0..3 {
                             lane[a][k] = node[k].0[l];
@@ -262,7 +316,7 @@ fn add_all(
             }
             None => {
                 for e in b.first..b.first + b.len {
-                    tet4_add_forces(&elements[e], lame, x, forces, e)?;
+                    K::add_one(&elements[e], lame, x, forces, e)?;
                 }
             }
         }
@@ -270,29 +324,76 @@ fn add_all(
     Ok(())
 }
 
-/// The node forces of every lane of `b` ([`tet4_forces`]); `None` when a lane needs the
-/// one-element kernel (see the module documentation).
+/// `true` when every lane of `v` is finite and positive.
 #[inline(always)]
-fn block_forces(b: &Tet4Block, x: &[[f64; 3]], lambda: V, mu: V) -> Option<[[V; 3]; 4]> {
-    // Edge vectors `d_a = x_a - x_0`, lane by lane.
-    let mut d: M = [[V::ZERO; 3]; 3];
-    for l in 0..LANES {
-        let n = b.nodes[l];
-        let x0 = x[n[0] as usize];
-        for a in 0..3 {
-            let xa = x[n[a + 1] as usize];
-            for k in 0..3 {
-                d[a][k].0[l] = xa[k] - x0[k];
+fn all_positive(v: V) -> bool {
+    v.0.iter().all(|v| v.is_finite() && *v > 0.0)
+}
+
+impl LaneKernel<4> for Linear {
+    #[inline(always)]
+    fn block_forces(b: &Tet4Block, x: &[[f64; 3]], lambda: V, mu: V) -> Option<[[V; 3]; 4]> {
+        // Edge vectors `d_a = x_a - x_0`, lane by lane.
+        let mut d: M = [[V::ZERO; 3]; 3];
+        for l in 0..LANES {
+            let n = b.nodes[l];
+            let x0 = x[n[0] as usize];
+            for a in 0..3 {
+                let xa = x[n[a + 1] as usize];
+                for k in 0..3 {
+                    d[a][k].0[l] = xa[k] - x0[k];
+                }
             }
         }
+        let f = tet4_gradient(&d, &b.grad);
+        if !all_positive(det(&f)) {
+            return None;
+        }
+        let r = polar_rotation_lanes(&f)?;
+        Some(tet4_forces(&r, &f, &b.grad, b.volume, lambda, mu))
     }
-    let f = tet4_gradient(&d, &b.grad);
-    let det_f = det(&f);
-    if !det_f.0.iter().all(|v| v.is_finite() && *v > 0.0) {
-        return None;
+
+    #[inline(always)]
+    fn add_one(
+        el: &TetRef<4>,
+        lame: Lame,
+        x: &[[f64; 3]],
+        forces: &mut [[f64; 3]],
+        e: usize,
+    ) -> Result<(), ElasticError> {
+        tet4_add_forces(el, lame, x, forces, e)
     }
-    let r = polar_rotation_lanes(&f)?;
-    Some(tet4_forces(&r, &f, &b.grad, b.volume, lambda, mu))
+}
+
+impl LaneKernel<10> for Quadratic {
+    /// The steps of [`crate::kernels::tet10_forces`], lane by lane.
+    #[inline(always)]
+    fn block_forces(b: &Tet10Block, x: &[[f64; 3]], lambda: V, mu: V) -> Option<[[V; 3]; 10]> {
+        let xs = b.gather(x);
+        let g = grads4(&b.grad);
+        let (fc, fbar) = tet10_gradients(&xs, &g);
+        if !(all_positive(det(&fbar)) && fc.iter().all(|f| all_positive(det(f)))) {
+            return None;
+        }
+        let r = polar_rotation_lanes(&fbar)?;
+        let eps = tet10_corner_strains(&r, &fc);
+        let k = b.volume / V::splat(20.0);
+        let (s, _) = tet10_smoothed_stresses(k, lambda, mu, &eps);
+        let mut out = tet10_corotational_forces(&g, &s, &r);
+        let det_a = tet10_add_correction(&xs, &g, &fbar, &r, &mut out);
+        all_positive(det_a).then_some(out)
+    }
+
+    #[inline(always)]
+    fn add_one(
+        el: &TetRef<10>,
+        lame: Lame,
+        x: &[[f64; 3]],
+        forces: &mut [[f64; 3]],
+        e: usize,
+    ) -> Result<(), ElasticError> {
+        tet10_add_forces(el, lame, x, forces, e)
+    }
 }
 
 /// `||X^T X - I||_F^2` and `X^T X`, per lane (as `polar::orthogonality_defect`).
@@ -438,7 +539,7 @@ mod tests {
             let blocks = Tet4Block::blocks(&els);
             for path in Path::available() {
                 let mut forces = vec![[0.0; 3]; x.len()];
-                add_block_forces(path, &blocks, &els, lame, &x, &mut forces).unwrap();
+                add_block_forces::<Linear, 4>(path, &blocks, &els, lame, &x, &mut forces).unwrap();
                 for (a, b) in forces.iter().zip(&reference) {
                     for k in 0..3 {
                         assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
@@ -449,9 +550,128 @@ mod tests {
     }
 
     #[test]
-    fn a_block_holds_eight_elements_in_784_bytes() {
-        // 98 bytes per element (docs/PERFORMANCE.md, "Memory").
+    fn a_block_holds_eight_elements_in_784_or_976_bytes() {
+        // 98 bytes per linear and 122 per quadratic element (docs/PERFORMANCE.md, "Memory").
         assert_eq!(std::mem::size_of::<Tet4Block>(), 784);
+        assert_eq!(std::mem::size_of::<Tet10Block>(), 976);
+    }
+
+    /// Quadratic elements on random nodes (straight-sided at rest), and positions: the rest
+    /// nodes rotated by up to a half turn, strained by up to `strain`, and each node moved
+    /// by up to `strain` of the element's size on its own (so that the corner gradients
+    /// differ and the energy correction (Q5) is not zero); every few elements one strained
+    /// far beyond the Newton–Schulz region, so that blocks also take the fallback.
+    fn case10(n_el: usize, strain: f64, seed: u64) -> (Vec<TetRef<10>>, Vec<[f64; 3]>) {
+        let mut g = Lcg(seed);
+        let mut rest = Vec::new();
+        let mut now = Vec::new();
+        let mut els = Vec::new();
+        for e in 0..n_el {
+            let base = rest.len();
+            let mut corners = [
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ];
+            for c in &mut corners {
+                for v in c.iter_mut() {
+                    *v += 0.1 * g.next();
+                }
+            }
+            let mut nodes10 = corners.to_vec();
+            for (a, b) in crate::kernels::EDGES {
+                nodes10.push([
+                    0.5 * (corners[a][0] + corners[b][0]),
+                    0.5 * (corners[a][1] + corners[b][1]),
+                    0.5 * (corners[a][2] + corners[b][2]),
+                ]);
+            }
+            let (s, c) = (3.0 * g.next()).sin_cos();
+            let big = if e % 13 == 5 { 0.6 } else { strain };
+            let mut stretch = [[0.0; 3]; 3];
+            for i in 0..3 {
+                for j in 0..3 {
+                    stretch[i][j] = f64::from(u8::from(i == j)) + big * g.next();
+                }
+            }
+            let jitter = big.min(0.05);
+            for q in nodes10 {
+                rest.push(q);
+                let mut u = crate::mat3::mul_vec(&stretch, q);
+                for v in &mut u {
+                    *v += jitter * g.next();
+                }
+                now.push([c * u[0] - s * u[1] + 2.0, s * u[0] + c * u[1], u[2] - 1.0]);
+            }
+            let ids: Vec<usize> = (base..base + 10).collect();
+            els.extend(crate::element_set::build::<10>(&rest, &ids).unwrap());
+        }
+        (els, now)
+    }
+
+    #[test]
+    fn every_path_gives_the_one_element_quadratic_forces_to_the_last_bit() {
+        let lame = Lame {
+            lambda: 1.1e10,
+            mu: 1.6e10,
+        };
+        for (strain, seed) in [(1e-5, 1), (1e-4, 2), (1e-3, 3), (3e-2, 4)] {
+            let (els, x) = case10(61, strain, seed);
+            let mut reference = vec![[0.0; 3]; x.len()];
+            let mut correction = 0.0_f64;
+            for (e, el) in els.iter().enumerate() {
+                crate::kernels::tet10_add_forces(el, lame, &x, &mut reference, e).unwrap();
+                // The size of (Q5) relative to the forces, so that the test covers it.
+                let st = crate::kernels::tet10_kinematics(el, &x, e).unwrap();
+                let g = el.grads4();
+                let (s, _) =
+                    tet10_smoothed_stresses(el.volume / 20.0, lame.lambda, lame.mu, &st.eps);
+                let plain = tet10_corotational_forces(&g, &s, &st.r);
+                let mut full = plain;
+                tet10_add_correction(&st.xs, &g, &st.fbar, &st.r, &mut full);
+                let scale = plain.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+                for (a, b) in full.iter().flatten().zip(plain.iter().flatten()) {
+                    correction = correction.max((a - b).abs() / scale);
+                }
+            }
+            assert!(
+                correction > 1e-9,
+                "strain {strain}: (Q5) too small to test: {correction}"
+            );
+            let blocks = Tet10Block::blocks(&els);
+            for path in Path::available() {
+                let mut forces = vec![[0.0; 3]; x.len()];
+                add_block_forces::<Quadratic, 10>(path, &blocks, &els, lame, &x, &mut forces)
+                    .unwrap();
+                for (a, b) in forces.iter().zip(&reference) {
+                    for k in 0..3 {
+                        assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_inverted_quadratic_element_is_named_on_every_path() {
+        let lame = Lame {
+            lambda: 1.0,
+            mu: 1.0,
+        };
+        let (els, mut x) = case10(20, 1e-4, 9);
+        // Element 11: swap two corners' current positions (det F < 0).
+        x.swap(110, 111);
+        let blocks = Tet10Block::blocks(&els);
+        for path in Path::available() {
+            let mut forces = vec![[0.0; 3]; x.len()];
+            let err = add_block_forces::<Quadratic, 10>(path, &blocks, &els, lame, &x, &mut forces)
+                .unwrap_err();
+            assert!(
+                matches!(err, ElasticError::InvertedElement { element: 11, .. }),
+                "{path:?}: {err}"
+            );
+        }
     }
 
     #[test]
@@ -466,7 +686,8 @@ mod tests {
         let blocks = Tet4Block::blocks(&els);
         for path in Path::available() {
             let mut forces = vec![[0.0; 3]; x.len()];
-            let err = add_block_forces(path, &blocks, &els, lame, &x, &mut forces).unwrap_err();
+            let err = add_block_forces::<Linear, 4>(path, &blocks, &els, lame, &x, &mut forces)
+                .unwrap_err();
             assert!(
                 matches!(err, ElasticError::InvertedElement { element: 11, .. }),
                 "{path:?}: {err}"

@@ -8,12 +8,18 @@
 //! [`crate::lanes`] for several elements at once. Both run the same operations in the same
 //! order, which is what makes the two kernels agree to the last bit.
 
-use std::ops::{Add, AddAssign, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub};
 
 /// A number type the 3x3 products work on: `f64`, or a vector of `f64` lanes with
 /// element-wise operations.
 pub(crate) trait Real:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self> + AddAssign
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
 {
     /// Zero.
     const ZERO: Self;
@@ -36,7 +42,23 @@ pub type Mat3 = [[f64; 3]; 3];
 pub(crate) const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 // The vector helpers are the project's one definition, in `fdem-core`.
-pub(crate) use fdem_core::geometry::{cross, dot, sub};
+pub(crate) use fdem_core::geometry::{dot, sub};
+
+/// [`sub`] for any [`Real`] (the lane kernels need it on lane vectors): the same operations.
+#[inline(always)]
+pub(crate) fn vsub<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `fdem_core::geometry::cross` for any [`Real`]: the same operations in the same order.
+#[inline(always)]
+pub(crate) fn vcross<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
 
 /// `m += a (x) b` (outer product, `m[i][j] += a[i] b[j]`).
 #[inline(always)]
@@ -120,7 +142,7 @@ pub(crate) fn det<T: Real>(m: &[[T; 3]; 3]) -> T {
 
 /// Cofactor matrix, `cof(m) = det(m) m^{-T}`.
 #[inline(always)]
-pub(crate) fn cofactor(m: &Mat3) -> Mat3 {
+pub(crate) fn cofactor<T: Real>(m: &[[T; 3]; 3]) -> [[T; 3]; 3] {
     [
         [
             m[1][1] * m[2][2] - m[1][2] * m[2][1],
@@ -152,7 +174,7 @@ pub(crate) fn norm2(m: &Mat3) -> f64 {
 
 /// Transpose.
 #[inline(always)]
-pub(crate) fn transpose(m: &Mat3) -> Mat3 {
+pub(crate) fn transpose<T: Real>(m: &[[T; 3]; 3]) -> [[T; 3]; 3] {
     [
         [m[0][0], m[1][0], m[2][0]],
         [m[0][1], m[1][1], m[2][1]],

@@ -8,9 +8,9 @@ use fdem_mesh::{ElementOrder, TetMesh};
 /// mass and inverse mass).
 pub const BYTES_PER_NODE: u64 = 112;
 
-/// Bytes per element: the kernel's record, its bound and the connectivity, and for linear
-/// elements their copy in the lane kernel's blocks (linear, quadratic).
-pub const BYTES_PER_ELEMENT: [u64; 2] = [234, 208];
+/// Bytes per element: the kernel's record, its bound and the connectivity, and the
+/// element's copy in the lane kernel's blocks (linear, quadratic).
+pub const BYTES_PER_ELEMENT: [u64; 2] = [234, 330];
 
 /// Bytes per surface node for the contact model and the rest of a run (candidates,
 /// history, scratch), rounded up from a measured whole-process peak.
