@@ -536,16 +536,7 @@ mod tests {
             for (e, el) in els.iter().enumerate() {
                 tet4_add_forces(el, lame, &x, &mut reference, e).unwrap();
             }
-            let blocks = Tet4Block::blocks(&els);
-            for path in Path::available() {
-                let mut forces = vec![[0.0; 3]; x.len()];
-                add_block_forces::<Linear, 4>(path, &blocks, &els, lame, &x, &mut forces).unwrap();
-                for (a, b) in forces.iter().zip(&reference) {
-                    for k in 0..3 {
-                        assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
-                    }
-                }
-            }
+            assert_every_path_gives::<Linear, 4>(&els, lame, &x, &reference, strain);
         }
     }
 
@@ -639,34 +630,52 @@ mod tests {
                 correction > 1e-9,
                 "strain {strain}: (Q5) too small to test: {correction}"
             );
-            let blocks = Tet10Block::blocks(&els);
-            for path in Path::available() {
-                let mut forces = vec![[0.0; 3]; x.len()];
-                add_block_forces::<Quadratic, 10>(path, &blocks, &els, lame, &x, &mut forces)
-                    .unwrap();
-                for (a, b) in forces.iter().zip(&reference) {
-                    for k in 0..3 {
-                        assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
-                    }
-                }
-            }
+            assert_every_path_gives::<Quadratic, 10>(&els, lame, &x, &reference, strain);
         }
     }
 
     #[test]
     fn an_inverted_quadratic_element_is_named_on_every_path() {
+        let (els, mut x) = case10(20, 1e-4, 9);
+        // Element 11: swap two corners' current positions (det F < 0).
+        x.swap(110, 111);
+        assert_element_11_is_named::<Quadratic, 10>(&els, &x);
+    }
+
+    /// Every path's forces for `els` at `x` equal `reference` to the last bit.
+    fn assert_every_path_gives<K: LaneKernel<N>, const N: usize>(
+        els: &[TetRef<N>],
+        lame: Lame,
+        x: &[[f64; 3]],
+        reference: &[[f64; 3]],
+        strain: f64,
+    ) {
+        let blocks = Block::blocks(els);
+        for path in Path::available() {
+            let mut forces = vec![[0.0; 3]; x.len()];
+            add_block_forces::<K, N>(path, &blocks, els, lame, x, &mut forces).unwrap();
+            for (a, b) in forces.iter().zip(reference) {
+                for k in 0..3 {
+                    assert_eq!(a[k].to_bits(), b[k].to_bits(), "{path:?}, strain {strain}");
+                }
+            }
+        }
+    }
+
+    /// Element 11 of `els`, inverted at `x`, is named on every path.
+    fn assert_element_11_is_named<K: LaneKernel<N>, const N: usize>(
+        els: &[TetRef<N>],
+        x: &[[f64; 3]],
+    ) {
         let lame = Lame {
             lambda: 1.0,
             mu: 1.0,
         };
-        let (els, mut x) = case10(20, 1e-4, 9);
-        // Element 11: swap two corners' current positions (det F < 0).
-        x.swap(110, 111);
-        let blocks = Tet10Block::blocks(&els);
+        let blocks = Block::blocks(els);
         for path in Path::available() {
             let mut forces = vec![[0.0; 3]; x.len()];
-            let err = add_block_forces::<Quadratic, 10>(path, &blocks, &els, lame, &x, &mut forces)
-                .unwrap_err();
+            let err =
+                add_block_forces::<K, N>(path, &blocks, els, lame, x, &mut forces).unwrap_err();
             assert!(
                 matches!(err, ElasticError::InvertedElement { element: 11, .. }),
                 "{path:?}: {err}"
@@ -676,22 +685,9 @@ mod tests {
 
     #[test]
     fn an_inverted_element_is_named_on_every_path() {
-        let lame = Lame {
-            lambda: 1.0,
-            mu: 1.0,
-        };
         let (els, mut x) = case(20, 1e-4, 9);
         // Element 11: swap two corners' current positions (det F < 0).
         x.swap(44, 45);
-        let blocks = Tet4Block::blocks(&els);
-        for path in Path::available() {
-            let mut forces = vec![[0.0; 3]; x.len()];
-            let err = add_block_forces::<Linear, 4>(path, &blocks, &els, lame, &x, &mut forces)
-                .unwrap_err();
-            assert!(
-                matches!(err, ElasticError::InvertedElement { element: 11, .. }),
-                "{path:?}: {err}"
-            );
-        }
+        assert_element_11_is_named::<Linear, 4>(&els, &x);
     }
 }
