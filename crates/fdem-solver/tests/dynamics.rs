@@ -325,13 +325,15 @@ fn stability_limit_is_where_the_bound_says() {
 }
 
 /// Bit-for-bit determinism: the same scene gives the same bits with 1 and 2 threads
-/// (bodies own their nodes, so no sum depends on scheduling).
+/// (bodies own their nodes, so no sum depends on scheduling), with linear and quadratic
+/// particles (both run in the lane kernel).
 #[test]
 fn results_are_bitwise_identical_across_thread_counts() {
     let particles: String = (0..6)
         .map(|i| {
+            let order = if i % 2 == 0 { "linear" } else { "quadratic" };
             format!(
-                "[[particle]]\ndiameter = 0.01\ncenter = [{}, 0.0, 0.0]\nangular_velocity = [{}, 10.0, 0.0]\nvelocity = [0.0, {}, 0.0]\n",
+                "[[particle]]\ndiameter = 0.01\ncenter = [{}, 0.0, 0.0]\nangular_velocity = [{}, 10.0, 0.0]\nvelocity = [0.0, {}, 0.0]\nmesh = {{ level = 1, order = \"{order}\" }}\n",
                 0.02 * i as f64,
                 100.0 * i as f64,
                 0.01 * i as f64
