@@ -56,6 +56,13 @@ pub enum ContactError {
         n_nodes: usize,
     },
 
+    /// Forces were asked of an evaluation that did not happen or failed.
+    #[error(
+        "no contact evaluation waits for its forces: call ContactModel::evaluate (and check \
+         its result) before ContactModel::add_evaluated_forces, once per evaluation"
+    )]
+    NotEvaluated,
+
     /// The surface description is inconsistent.
     #[error("inconsistent contact surface: {what}; {fix}")]
     InconsistentSurface {

@@ -131,6 +131,16 @@ fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
 }
 
 /// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
+/// Every face's unit normal and plane offset at `positions` into `planes`.
+fn face_planes(planes: &mut Vec<[f64; 4]>, triangles: &[[usize; 3]], positions: &[[f64; 3]]) {
+    planes.resize(triangles.len(), [0.0; 4]);
+    planes
+        .par_iter_mut()
+        .zip(triangles.par_iter())
+        .with_min_len(CHUNK)
+        .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
+}
+
 fn check_step(time: f64, dt: f64) -> Result<(), ContactError> {
     if !(dt.is_finite() && dt > 0.0) {
         return Err(ContactError::InvalidStep {
@@ -408,6 +418,9 @@ pub struct ContactModel {
     /// Evaluations so far (`add_forces` calls that succeeded): before the first, a sheet
     /// contact may start at any depth (an assembled or restored state).
     evaluations: u64,
+    /// An evaluation whose forces wait for [`ContactModel::add_evaluated_forces`], with
+    /// what it did to the broad phase.
+    evaluated: Option<Renewal>,
 }
 
 /// The lightest surface node of each body, then the two lightest bodies: a node's
@@ -591,6 +604,7 @@ impl ContactModel {
             sheets: Sheets::default(),
             jumps: None,
             evaluations: 0,
+            evaluated: None,
         })
     }
 
@@ -1000,25 +1014,15 @@ impl ContactModel {
         out
     }
 
-    fn check_lengths(
-        &self,
-        positions: &[[f64; 3]],
-        velocities: &[[f64; 3]],
-        forces: &[[f64; 3]],
-    ) -> Result<(), ContactError> {
-        for (array, found) in [
-            ("positions", positions.len()),
-            ("velocities", velocities.len()),
-            ("forces", forces.len()),
-        ] {
-            if found != self.n_nodes {
-                return Err(ContactError::LengthMismatch {
-                    array,
-                    expected: self.n_nodes,
-                    found,
-                    reason: "one entry per node, as many as the masses given to ContactModel::new",
-                });
-            }
+    /// An array of `found` entries where one per node is required.
+    fn check_length(&self, array: &'static str, found: usize) -> Result<(), ContactError> {
+        if found != self.n_nodes {
+            return Err(ContactError::LengthMismatch {
+                array,
+                expected: self.n_nodes,
+                found,
+                reason: "one entry per node, as many as the masses given to ContactModel::new",
+            });
         }
         Ok(())
     }
@@ -1067,7 +1071,8 @@ impl ContactModel {
     }
 
     /// Adds the contact forces for the state at time `time` to `forces`, advancing the
-    /// tangential histories by one step `dt`, and returns the report.
+    /// tangential histories by one step `dt`, and returns the report: an
+    /// [`ContactModel::evaluate`] followed by [`ContactModel::add_evaluated_forces`].
     ///
     /// `positions`, `velocities` and `forces` are indexed by global node id and must have
     /// as many entries as the masses given to [`ContactModel::new`]. Wall positions are
@@ -1091,12 +1096,44 @@ impl ContactModel {
         dt: f64,
         forces: &mut [[f64; 3]],
     ) -> Result<ContactReport, ContactError> {
-        check_step(time, dt)?;
-        self.check_lengths(positions, velocities, forces)?;
+        self.check_length("forces", forces.len())?;
+        self.evaluate(positions, velocities, time, dt)?;
+        self.add_evaluated_forces(forces)
+    }
 
-        // Pass 1: finiteness, Verlet-skin drift, fastest node; a fastest node too fast for
-        // the depth limit grows it (within its cap).
-        let scan = self.scan(positions, velocities);
+    /// The first half of [`ContactModel::add_forces`]: finds the contacts of the state at
+    /// time `time` and evaluates the law for each, without touching any force array, so
+    /// that a caller may compute other forces into its array meanwhile (the engine runs
+    /// the elements' forces beside it). [`ContactModel::add_evaluated_forces`] then adds
+    /// them and keeps the contacts as the history of the next evaluation; until then the
+    /// history is that of the last evaluation, and a new `evaluate` replaces this one.
+    ///
+    /// # Errors
+    /// As [`ContactModel::add_forces`]; the history is unchanged after an error.
+    pub fn evaluate(
+        &mut self,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        time: f64,
+        dt: f64,
+    ) -> Result<(), ContactError> {
+        self.evaluated = None;
+        check_step(time, dt)?;
+        self.check_length("positions", positions.len())?;
+        self.check_length("velocities", velocities.len())?;
+
+        // Pass 1: finiteness, Verlet-skin drift, fastest node (a fastest node too fast for
+        // the depth limit grows it, within its cap); beside it, every face's plane (they
+        // depend on the positions alone, not on the broad phase).
+        let mut planes = std::mem::take(&mut self.planes);
+        let (scan, ()) = rayon::join(
+            || self.scan(positions, velocities),
+            || face_planes(&mut planes, &self.surface.triangles, positions),
+        );
+        self.planes = planes;
+        self.wall_shapes.clear();
+        self.wall_shapes
+            .extend(self.walls.iter().map(|w| w.shape_at(time)));
         let v_max = match self.check_scan(&scan, positions, velocities, dt) {
             Err(e) if let Some(grown) = self.grown_for(&e) => {
                 self.depth_limit = grown;
@@ -1106,7 +1143,6 @@ impl ContactModel {
             result => result?,
         };
         let mut renewal = self.rebuild_if_due(positions, scan.max_drift2);
-        self.update_geometry(positions, time);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
         // contact too deep for the depth limit, or a node moving too far relative to a
@@ -1126,8 +1162,25 @@ impl ContactModel {
                 result => break result?,
             }
         }
+        self.evaluated = Some(renewal);
+        Ok(())
+    }
 
-        // Pass 3, serial in a fixed order: spread forces and reactions, sum the report.
+    /// The second half of [`ContactModel::add_forces`], serial in a fixed order: adds the
+    /// forces of the last [`ContactModel::evaluate`] and the reactions on faces and walls
+    /// to `forces`, keeps the contacts as the next evaluation's history, and returns the
+    /// report.
+    ///
+    /// # Errors
+    /// [`ContactError::LengthMismatch`] for a `forces` array of another length;
+    /// [`ContactError::NotEvaluated`] when no evaluation is waiting (none since the last
+    /// call, or the last one failed).
+    pub fn add_evaluated_forces(
+        &mut self,
+        forces: &mut [[f64; 3]],
+    ) -> Result<ContactReport, ContactError> {
+        self.check_length("forces", forces.len())?;
+        let renewal = self.evaluated.take().ok_or(ContactError::NotEvaluated)?;
         let before = self.jumps.is_some().then(|| self.contacts.clone());
         let report = self.apply_forces(forces, renewal);
         self.report = report;
@@ -1361,19 +1414,6 @@ impl ContactModel {
         }
     }
 
-    /// The walls' shapes at `time` and every face's plane at `positions`.
-    fn update_geometry(&mut self, positions: &[[f64; 3]], time: f64) {
-        self.wall_shapes.clear();
-        self.wall_shapes
-            .extend(self.walls.iter().map(|w| w.shape_at(time)));
-        self.planes.resize(self.surface.triangles.len(), [0.0; 4]);
-        self.planes
-            .par_iter_mut()
-            .zip(self.surface.triangles.par_iter())
-            .with_min_len(CHUNK)
-            .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
-    }
-
     /// Runs the narrow phase and the law over every chunk of surface nodes into the
     /// chunks' scratch; the first error in node order, if any.
     fn narrow_phase(
@@ -1593,6 +1633,7 @@ impl ContactModel {
         self.walls.clone_from(&checkpoint.walls);
         self.wall_forces.clone_from(&checkpoint.wall_forces);
         self.evaluations = checkpoint.evaluations;
+        self.evaluated = None;
         if let Some(d) = checkpoint.depth_limit {
             self.depth_limit = d;
             self.rebuild_requested = true;

@@ -829,6 +829,59 @@ fn evaluations_are_bit_for_bit_repeatable_for_any_thread_count() {
     }
 }
 
+/// `evaluate` then `add_evaluated_forces` is `add_forces` split in two (the engine computes
+/// the element forces between them): the same forces, reports and histories to the bit,
+/// with other forces already in the array; forces without a waiting evaluation, or after a
+/// failed one, are refused and add nothing.
+#[test]
+fn an_evaluation_split_in_two_adds_the_same_forces() {
+    let mut r = rng(5);
+    let assembly = overlapping_pair(&mut r, 1, 0.01, 5e-5);
+    let n = assembly.n_nodes();
+    let v: Vec<[f64; 3]> = (0..n)
+        .map(|_| std::array::from_fn(|_| r.random_range(-0.5..0.5)))
+        .collect();
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let mut whole = model_for(&assembly, params, vec![], 1e-4, None);
+    let mut split = whole.clone();
+    // Forces already in the array (the elements' in the engine).
+    let others: Vec<[f64; 3]> = (0..n)
+        .map(|_| std::array::from_fn(|_| r.random_range(-1.0..1.0)))
+        .collect();
+    for step in 0..3 {
+        let t = step as f64 * 1e-7;
+        let mut fa = others.clone();
+        let ra = whole
+            .add_forces(&assembly.nodes, &v, t, 1e-7, &mut fa)
+            .unwrap();
+        let mut fb = others.clone();
+        split.evaluate(&assembly.nodes, &v, t, 1e-7).unwrap();
+        let rb = split.add_evaluated_forces(&mut fb).unwrap();
+        let bits =
+            |f: &[[f64; 3]]| -> Vec<u64> { f.iter().flatten().map(|x| x.to_bits()).collect() };
+        assert_eq!(bits(&fa), bits(&fb), "step {step}");
+        assert_eq!(ra, rb);
+        assert_eq!(whole.node_contacts(), split.node_contacts());
+    }
+    assert!(!whole.node_contacts().is_empty());
+    // No evaluation waits: refused, the array untouched.
+    let mut f = others.clone();
+    let err = split.add_evaluated_forces(&mut f).unwrap_err();
+    assert!(matches!(err, ContactError::NotEvaluated), "{err}");
+    assert!(err.to_string().contains("ContactModel::evaluate"), "{err}");
+    assert_eq!(f, others);
+    // A failed evaluation (a non-finite position) leaves nothing to add.
+    let mut bad = assembly.nodes.clone();
+    bad[0][0] = f64::NAN;
+    assert!(split.evaluate(&bad, &v, 4e-7, 1e-7).is_err());
+    let err = split.add_evaluated_forces(&mut f).unwrap_err();
+    assert!(matches!(err, ContactError::NotEvaluated), "{err}");
+    assert_eq!(f, others);
+}
+
 #[test]
 fn set_up_and_input_errors_say_what_and_where() {
     let surface = ContactSurface {

@@ -68,13 +68,26 @@ impl ContactForces {
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
-        let report = self.model.add_forces(
-            nodes.positions,
-            nodes.velocities,
-            nodes.time,
-            nodes.dt,
-            forces,
-        )?;
+        self.evaluate(nodes)?;
+        self.add_evaluated_forces(forces)
+    }
+
+    /// Finds the contacts at `nodes` and evaluates the law, touching no force array
+    /// ([`ContactModel::evaluate`]); the engine computes the element forces meanwhile.
+    pub(crate) fn evaluate(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
+        Ok(self
+            .model
+            .evaluate(nodes.positions, nodes.velocities, nodes.time, nodes.dt)?)
+    }
+
+    /// Adds the forces of the last [`ContactForces::evaluate`] to `forces` (N) and returns
+    /// the powers of the walls (external), the dashpots (damping) and friction sliding over
+    /// the step.
+    pub(crate) fn add_evaluated_forces(
+        &mut self,
+        forces: &mut [[f64; 3]],
+    ) -> Result<Powers, SolverError> {
+        let report = self.model.add_evaluated_forces(forces)?;
         let powers = Powers {
             external: report.wall_power,
             damping: report.normal_damping_power + report.tangential_damping_power,

@@ -577,15 +577,23 @@ impl Simulation {
         })
     }
 
-    /// The forces at the current state: zero them, then the elastic forces, contact,
-    /// every contribution in the order added, gravity, and the constraints as a pass of
-    /// their own.
+    /// The forces at the current state: zero them, then [`Simulation::add_forces`].
     fn compute_forces(&mut self) -> Result<(), SolverError> {
-        let state = &mut self.state;
-        state
+        self.state
             .forces
             .par_chunks_mut(NODE_CHUNK)
             .for_each(|chunk| chunk.fill([0.0; 3]));
+        self.add_forces()
+    }
+
+    /// Adds the forces at the current state to the node forces, which must be zero: the
+    /// elastic forces with the contact detection and the contributions' preparations
+    /// beside them (these read the state and write no force), then the contact forces,
+    /// every contribution in the order added, gravity, and the constraints as a pass of
+    /// their own. The order of the additions into each node's force is fixed, so the sum
+    /// does not depend on the threads.
+    fn add_forces(&mut self) -> Result<(), SolverError> {
+        let state = &mut self.state;
         let view = NodeView {
             positions: &state.positions,
             velocities: &state.velocities,
@@ -594,10 +602,24 @@ impl Simulation {
             dt: self.dt,
         };
         let forces = &mut state.forces;
-        self.elastic.add_forces(view, forces)?;
+        let elastic = &mut self.elastic;
+        let contributions = &mut self.parts.contributions;
+        let (elastic, (detected, prepared)) = rayon::join(
+            || elastic.add_forces(view, forces),
+            || {
+                rayon::join(
+                    || self.contact.as_mut().map(|c| c.evaluate(view)),
+                    || contributions.iter_mut().try_for_each(|c| c.prepare(view)),
+                )
+            },
+        );
+        // The errors in the order the parts add their forces.
+        elastic?;
+        detected.transpose()?;
+        prepared?;
         let mut powers = Powers::default();
         if let Some(contact) = self.contact.as_mut() {
-            powers.add(contact.add_forces(view, forces)?);
+            powers.add(contact.add_evaluated_forces(forces)?);
         }
         for c in &mut self.parts.contributions {
             powers.add(c.add_forces(view, forces)?);
@@ -619,18 +641,20 @@ impl Simulation {
     /// kick and drift, forces (with the constraints' pass), booking of work and
     /// dissipation, kick, guard.
     ///
-    /// A step opens several parallel regions of the rayon pool. Call it from a worker of
+    /// A step opens three parallel regions of the rayon pool with deformable bodies
+    /// alone (kick, drift and the forces' reset; elements beside the contact detection;
+    /// kick), two more with rigid bodies and one for gravity. Call it from a worker of
     /// the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
     /// does: from any other thread every region is a hand-over to the pool and a wake-up.
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
-        kick_and_drift(&mut self.state, half, dt);
+        kick_drift_and_reset(&mut self.state, half, dt);
         let s = &mut self.state;
         self.rigid
             .kick_drift(half, dt, &mut s.positions, &mut s.velocities);
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
-        if let Err(e) = self.compute_forces() {
+        if let Err(e) = self.add_forces() {
             // An inverted element or a refused contact step during the time loop is a
             // step-size problem: report it with the step, time, dt and bound.
             return Err(match e {
@@ -868,12 +892,13 @@ fn add_gravity(g: [f64; 3], masses: &[f64], inverse_masses: &[f64], forces: &mut
         });
 }
 
-/// The first half kick and the drift: `v += dt/2 f/m`, `x += dt v`.
-fn kick_and_drift(s: &mut NodeState, half: f64, dt: f64) {
+/// The first half kick and the drift, `v += dt/2 f/m`, `x += dt v`; then the forces, used
+/// up, are reset to zero for the step's new ones (one pass over the nodes instead of two).
+fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64) {
     s.positions
         .par_chunks_mut(NODE_CHUNK)
         .zip(s.velocities.par_chunks_mut(NODE_CHUNK))
-        .zip(s.forces.par_chunks(NODE_CHUNK))
+        .zip(s.forces.par_chunks_mut(NODE_CHUNK))
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
         .for_each(|(((x, v), f), im)| {
             for i in 0..x.len() {
@@ -881,6 +906,7 @@ fn kick_and_drift(s: &mut NodeState, half: f64, dt: f64) {
                     v[i][k] += half * f[i][k] * im[i];
                     x[i][k] += dt * v[i][k];
                 }
+                f[i] = [0.0; 3];
             }
         });
 }

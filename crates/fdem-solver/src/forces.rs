@@ -134,6 +134,18 @@ pub trait ForceContribution: Any + Send {
     /// The stable-step bound this contribution imposes, if any, given the lumped masses
     /// of all nodes (kg).
     fn stable_time_step(&self, masses: &[f64]) -> Option<StepBound>;
+    /// Work that reads the state and writes no force, such as per-element forces into the
+    /// contribution's own scratch: the engine runs it in parallel with the elements' forces
+    /// and the contact detection, then calls [`ForceContribution::add_forces`] at the same
+    /// state, in the order the contributions were added. A contribution that prepares must
+    /// give the same forces whether or not `prepare` came first. Nothing by default.
+    ///
+    /// # Errors
+    /// As [`ForceContribution::add_forces`].
+    fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
+        let _ = nodes;
+        Ok(())
+    }
     /// Adds this contribution's forces to `forces` (N) and returns the powers it exchanges.
     fn add_forces(
         &mut self,

@@ -11,7 +11,9 @@
 //! the ring nodes (their velocity is the platen's) and books the reaction's power as
 //! external work, so the energy balance stays checked.
 
-use crate::membrane::{MembraneForces, MembraneMesh, MembraneSpec, membrane_mesh};
+use crate::membrane::{
+    MembraneForces, MembraneMesh, MembraneSpec, TRIANGLES_PER_TASK, membrane_mesh,
+};
 use crate::{PreparedSpecimen, SpecimenSpec, TriaxialError};
 use fdem_contact::{Counterpart, Wall, WallShape};
 use fdem_core::geometry::{cross, sub};
@@ -20,6 +22,7 @@ use fdem_solver::{
     ModelBuilder, NodeView, Powers, Scene, SheetBody, Simulation, SimulationSection, SolverError,
     StepBound, TimeStep, VerletWork, WallId,
 };
+use rayon::prelude::*;
 
 /// Default starting depth limit of the test's contacts, in contact margins (`[contact]
 /// depth_limit` overrides it). The limit grows, up to [`TEST_DEPTH_LIMIT_CAP_DIAMETERS`],
@@ -204,6 +207,9 @@ pub struct PressurisedMembrane {
     work: VerletWork,
     /// Pressure forces of the current evaluation per membrane node (scratch).
     scratch: Vec<[f64; 3]>,
+    /// `(b - a) x (c - a)` of every triangle at the state of time `.1`, from
+    /// [`ForceContribution::prepare`] (scratch).
+    areas: (Vec<[f64; 3]>, Option<f64>),
 }
 
 impl PressurisedMembrane {
@@ -214,6 +220,7 @@ impl PressurisedMembrane {
             triangles,
             work: VerletWork::default(),
             scratch: Vec::new(),
+            areas: (Vec::new(), None),
         }
     }
 
@@ -222,19 +229,34 @@ impl PressurisedMembrane {
         &self.inner
     }
 
-    /// The pressure forces alone at `x`: the membrane adds `p a_in / 3` to each corner,
-    /// `a_in = (b - a) x (c - a) / 2`.
-    fn pressure_forces(&mut self, x: &[[f64; 3]]) {
-        let (first, n, p) = (
-            self.inner.first_node(),
-            self.inner.n_nodes(),
-            self.inner.pressure(),
-        );
+    /// `(b - a) x (c - a)` of every triangle at `nodes`, in parallel over triangles, for
+    /// the state of `nodes.time`.
+    fn evaluate_areas(&mut self, nodes: NodeView<'_>) {
+        let first = self.inner.first_node();
+        let x = nodes.positions;
+        let mut out = std::mem::take(&mut self.areas.0);
+        out.resize(self.triangles.len(), [0.0; 3]);
+        out.par_iter_mut()
+            .zip(self.triangles.par_iter())
+            .with_min_len(TRIANGLES_PER_TASK)
+            .for_each(|(area, t)| {
+                let [a, b, c] = t.map(|i| x[i + first]);
+                *area = cross(sub(b, a), sub(c, a));
+            });
+        self.areas = (out, Some(nodes.time));
+    }
+
+    /// The pressure forces alone at `nodes`: the membrane adds `p a_in / 3` to each corner,
+    /// `a_in = (b - a) x (c - a) / 2`; summed serially in triangle order.
+    fn pressure_forces(&mut self, nodes: NodeView<'_>) {
+        if self.areas.1 != Some(nodes.time) {
+            self.evaluate_areas(nodes);
+        }
+        self.areas.1 = None;
+        let (n, p) = (self.inner.n_nodes(), self.inner.pressure());
         self.scratch.clear();
         self.scratch.resize(n, [0.0; 3]);
-        for t in &self.triangles {
-            let [a, b, c] = t.map(|i| x[i + first]);
-            let area = cross(sub(b, a), sub(c, a));
+        for (t, area) in self.triangles.iter().zip(&self.areas.0) {
             for &i in t {
                 for (f, a) in self.scratch[i].iter_mut().zip(area) {
                     *f += p * a / 6.0;
@@ -253,13 +275,19 @@ impl ForceContribution for PressurisedMembrane {
         self.inner.stable_time_step(masses)
     }
 
+    fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
+        self.inner.prepare(nodes)?;
+        self.evaluate_areas(nodes);
+        Ok(())
+    }
+
     fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
         let mut powers = self.inner.add_forces(nodes, forces)?;
-        self.pressure_forces(nodes.positions);
+        self.pressure_forces(nodes);
         let first = self.inner.first_node();
         self.work.ensure(self.scratch.len());
         let mut correction = 0.0;

@@ -29,6 +29,7 @@
 use fdem_core::geometry::{add, cross, dot, norm, scale, sub};
 use fdem_core::number::Number;
 use fdem_solver::{ForceContribution, NodeView, Powers, SolverError, StepBound};
+use rayon::prelude::*;
 
 type V3 = [f64; 3];
 
@@ -352,7 +353,21 @@ pub struct MembraneForces {
     c12: f64,
     g: f64,
     step: Option<StepBound>,
+    /// Each triangle's forces on its corners at the state of time `.1`, computed by
+    /// [`ForceContribution::prepare`] for the next `add_forces` at that time (scratch).
+    prepared: (Vec<CornerForces>, Option<f64>),
 }
+
+/// One triangle's forces on its corners: the elastic part per corner and the follower
+/// pressure's share, the same for each corner.
+#[derive(Clone, Copy, Debug, Default)]
+struct CornerForces {
+    elastic: [V3; 3],
+    pressure: V3,
+}
+
+/// Triangles per parallel task of the membrane's force pass.
+pub(crate) const TRIANGLES_PER_TASK: usize = 256;
 
 impl MembraneForces {
     /// Precomputes the reference data of every triangle of `mesh` (its positions are the
@@ -446,6 +461,7 @@ impl MembraneForces {
             c12: nu * c11,
             g,
             step,
+            prepared: (Vec::new(), None),
         })
     }
 
@@ -476,6 +492,59 @@ impl MembraneForces {
             .iter()
             .map(|t| t.map(|i| i + self.first_node))
             .collect()
+    }
+
+    /// Node arrays long enough for the membrane's nodes, and a finite pressure.
+    fn check_state(&self, lengths: &[usize]) -> Result<(), SolverError> {
+        let end = self.first_node + self.n_nodes;
+        if lengths.iter().any(|&l| l < end) {
+            return Err(SolverError::InvalidScene(format!(
+                "membrane nodes {}..{end} exceed the node arrays (lengths {lengths:?}); \
+                 add the membrane nodes before its forces",
+                self.first_node
+            )));
+        }
+        if !self.pressure.is_finite() {
+            return Err(SolverError::InvalidScene(format!(
+                "membrane pressure {} Pa is not finite; set a finite confining pressure",
+                self.pressure
+            )));
+        }
+        Ok(())
+    }
+
+    /// Every triangle's forces on its corners at `nodes`, in parallel over triangles (each
+    /// writes its own entry), for the state of `nodes.time`.
+    fn evaluate_corner_forces(&mut self, nodes: NodeView<'_>) {
+        let mut out = std::mem::take(&mut self.prepared.0);
+        out.resize(self.elements.len(), CornerForces::default());
+        out.par_iter_mut()
+            .zip(self.elements.par_iter())
+            .with_min_len(TRIANGLES_PER_TASK)
+            .for_each(|(cf, el)| *cf = self.corner_forces(el, nodes.positions));
+        self.prepared = (out, Some(nodes.time));
+    }
+
+    /// The forces of element `el` on its corners: elastic `f_i = -t A0 F S grad N_i`, the
+    /// exact gradient of W (dE = sym(F^T dF)); follower pressure `p a_in / 3` per corner,
+    /// `a_in = (b-a) x (c-a) / 2` (inward).
+    fn corner_forces(&self, el: &Element, positions: &[[f64; 3]]) -> CornerForces {
+        let f = self.deformation(el, positions);
+        let (_, s) = self.strain_stress(&f);
+        let pk = [
+            add(scale(f[0], s[0]), scale(f[1], s[2])),
+            add(scale(f[0], s[2]), scale(f[1], s[1])),
+        ];
+        let [a, b, c] = el.nodes.map(|i| self.node(positions, i));
+        CornerForces {
+            elastic: el.grad.map(|gr| {
+                scale(
+                    add(scale(pk[0], gr[0]), scale(pk[1], gr[1])),
+                    -self.thickness * el.area,
+                )
+            }),
+            pressure: scale(cross(sub(b, a), sub(c, a)), self.pressure / 6.0),
+        }
     }
 
     fn node(&self, positions: &[[f64; 3]], i: usize) -> V3 {
@@ -711,46 +780,29 @@ impl ForceContribution for MembraneForces {
         self.step.clone()
     }
 
+    fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
+        self.check_state(&[nodes.positions.len(), nodes.velocities.len()])?;
+        self.evaluate_corner_forces(nodes);
+        Ok(())
+    }
+
     fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
-        let end = self.first_node + self.n_nodes;
-        let short = [nodes.positions.len(), nodes.velocities.len(), forces.len()];
-        if short.iter().any(|&l| l < end) {
-            return Err(SolverError::InvalidScene(format!(
-                "membrane nodes {}..{end} exceed the node arrays (lengths {short:?}); \
-                 add the membrane nodes before its forces",
-                self.first_node
-            )));
+        self.check_state(&[nodes.positions.len(), nodes.velocities.len(), forces.len()])?;
+        if self.prepared.1 != Some(nodes.time) {
+            self.evaluate_corner_forces(nodes);
         }
-        if !self.pressure.is_finite() {
-            return Err(SolverError::InvalidScene(format!(
-                "membrane pressure {} Pa is not finite; set a finite confining pressure",
-                self.pressure
-            )));
-        }
-        let (p, f0) = (self.pressure, self.first_node);
+        self.prepared.1 = None;
+        // Serial, in element order: the additions into each node's force keep one order.
+        let f0 = self.first_node;
         let mut power = 0.0;
-        for el in &self.elements {
-            // Elastic part: f_i = -t A0 F S grad N_i, the exact gradient of W (dE = sym(F^T dF)).
-            let f = self.deformation(el, nodes.positions);
-            let (_, s) = self.strain_stress(&f);
-            let pk = [
-                add(scale(f[0], s[0]), scale(f[1], s[2])),
-                add(scale(f[0], s[2]), scale(f[1], s[1])),
-            ];
-            // Follower pressure: p a_in / 3 per node, a_in = (b-a) x (c-a) / 2 (inward).
-            let [a, b, c] = el.nodes.map(|i| nodes.positions[f0 + i]);
-            let fp = scale(cross(sub(b, a), sub(c, a)), p / 6.0);
-            for (&i, gr) in el.nodes.iter().zip(&el.grad) {
-                let fe = scale(
-                    add(scale(pk[0], gr[0]), scale(pk[1], gr[1])),
-                    -self.thickness * el.area,
-                );
-                forces[f0 + i] = add(forces[f0 + i], add(fe, fp));
-                power += dot(fp, nodes.velocities[f0 + i]);
+        for (el, cf) in self.elements.iter().zip(&self.prepared.0) {
+            for (&i, fe) in el.nodes.iter().zip(&cf.elastic) {
+                forces[f0 + i] = add(forces[f0 + i], add(*fe, cf.pressure));
+                power += dot(cf.pressure, nodes.velocities[f0 + i]);
             }
         }
         Ok(Powers {
@@ -1100,6 +1152,41 @@ mod tests {
             }
         }
         assert!(err < 1e-6, "relative gradient error {err:e}");
+    }
+
+    /// The forces and power after `prepare` (triangles in parallel) equal those of
+    /// `add_forces` alone to the bit (a large mesh, so that the pass splits into tasks);
+    /// a preparation for another time is not used.
+    #[test]
+    fn prepared_forces_equal_the_forces_computed_on_the_spot() {
+        let s = spec(40, 30, 0.2);
+        let m = membrane_mesh(&s).unwrap();
+        assert!(m.triangles.len() > 4 * TRIANGLES_PER_TASK);
+        let mut mf = MembraneForces::new(&m, &s, 0, 3e5).unwrap();
+        let mut st = 99u64;
+        let p: Vec<V3> = (m.positions.iter())
+            .map(|&x| add(x, jitter(&mut st, 2e-3)))
+            .collect();
+        let v: Vec<V3> = p.iter().map(|_| jitter(&mut st, 0.5)).collect();
+        let (f_spot, power_spot) = forces(&mut mf, &p, &v);
+        let masses = vec![1.0; p.len()];
+        let view = |positions, time| NodeView {
+            positions,
+            velocities: &v,
+            masses: &masses,
+            time,
+            dt: 0.0,
+        };
+        let bits = |f: &[V3]| -> Vec<u64> { f.iter().flatten().map(|x| x.to_bits()).collect() };
+        mf.prepare(view(&p, 0.0)).unwrap();
+        let (f_prepared, power_prepared) = forces(&mut mf, &p, &v);
+        assert_eq!(bits(&f_spot), bits(&f_prepared));
+        assert_eq!(power_spot.to_bits(), power_prepared.to_bits());
+        // Prepared at another time and state: recomputed, not reused.
+        let moved: Vec<V3> = p.iter().map(|&x| scale(x, 1.01)).collect();
+        mf.prepare(view(&moved, 1.0)).unwrap();
+        let (f_again, _) = forces(&mut mf, &p, &v);
+        assert_eq!(bits(&f_spot), bits(&f_again));
     }
 
     #[test]
