@@ -130,7 +130,6 @@ fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
     }
 }
 
-/// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
 /// Every face's unit normal and plane offset at `positions` into `planes`.
 fn face_planes(planes: &mut Vec<[f64; 4]>, triangles: &[[usize; 3]], positions: &[[f64; 3]]) {
     planes.resize(triangles.len(), [0.0; 4]);
@@ -141,6 +140,7 @@ fn face_planes(planes: &mut Vec<[f64; 4]>, triangles: &[[usize; 3]], positions: 
         .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
 }
 
+/// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
 fn check_step(time: f64, dt: f64) -> Result<(), ContactError> {
     if !(dt.is_finite() && dt > 0.0) {
         return Err(ContactError::InvalidStep {
@@ -382,8 +382,10 @@ struct Guards {
 /// Penalty node-to-face contact between deformable bodies and rigid walls.
 ///
 /// Create it once with the surface, the masses and a margin, then call
-/// [`ContactModel::add_forces`] exactly once per time step: each call advances the
-/// tangential history by `dt`. The model is [`Clone`], so a state can be evaluated twice.
+/// [`ContactModel::add_forces`] exactly once per time step (or its two halves,
+/// [`ContactModel::evaluate`] then [`ContactModel::add_evaluated_forces`], with nothing
+/// changed in the model between them): each step advances the tangential history by `dt`.
+/// The model is [`Clone`], so a state can be evaluated twice.
 #[derive(Clone, Debug)]
 pub struct ContactModel {
     params: ContactParams,
@@ -415,7 +417,7 @@ pub struct ContactModel {
     sheets: Sheets,
     /// The stored-energy jump log, while it is on (`set_energy_jump_log`).
     jumps: Option<JumpLog>,
-    /// Evaluations so far (`add_forces` calls that succeeded): before the first, a sheet
+    /// Evaluations so far (whose forces were added): before the first, a sheet
     /// contact may start at any depth (an assembled or restored state).
     evaluations: u64,
     /// An evaluation whose forces wait for [`ContactModel::add_evaluated_forces`], with
@@ -1096,6 +1098,10 @@ impl ContactModel {
         dt: f64,
         forces: &mut [[f64; 3]],
     ) -> Result<ContactReport, ContactError> {
+        // Every argument checked before any work, in the order of the errors' precedence.
+        check_step(time, dt)?;
+        self.check_length("positions", positions.len())?;
+        self.check_length("velocities", velocities.len())?;
         self.check_length("forces", forces.len())?;
         self.evaluate(positions, velocities, time, dt)?;
         self.add_evaluated_forces(forces)
@@ -1109,7 +1115,8 @@ impl ContactModel {
     /// history is that of the last evaluation, and a new `evaluate` replaces this one.
     ///
     /// # Errors
-    /// As [`ContactModel::add_forces`]; the history is unchanged after an error.
+    /// As [`ContactModel::add_forces`] but for the `forces` array, which this does not
+    /// see; the history is unchanged after an error, and no evaluation waits.
     pub fn evaluate(
         &mut self,
         positions: &[[f64; 3]],
@@ -1174,7 +1181,7 @@ impl ContactModel {
     /// # Errors
     /// [`ContactError::LengthMismatch`] for a `forces` array of another length;
     /// [`ContactError::NotEvaluated`] when no evaluation is waiting (none since the last
-    /// call, or the last one failed).
+    /// call, the last one failed, or the history was imported or restored since).
     pub fn add_evaluated_forces(
         &mut self,
         forces: &mut [[f64; 3]],
@@ -1676,6 +1683,8 @@ impl ContactModel {
         &mut self,
         history: &[(usize, Counterpart, [f64; 3])],
     ) -> Result<(), ContactError> {
+        // An evaluation waiting for its forces would overwrite the imported history.
+        self.evaluated = None;
         let fix = "import a history exported from a contact model built on the same \
                    assembly and walls";
         let index: std::collections::HashMap<usize, usize> = self

@@ -68,8 +68,14 @@ impl ContactForces {
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
-        self.evaluate(nodes)?;
-        self.add_evaluated_forces(forces)
+        let report = self.model.add_forces(
+            nodes.positions,
+            nodes.velocities,
+            nodes.time,
+            nodes.dt,
+            forces,
+        )?;
+        Ok(self.book(report))
     }
 
     /// Finds the contacts at `nodes` and evaluates the law, touching no force array
@@ -88,13 +94,18 @@ impl ContactForces {
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
         let report = self.model.add_evaluated_forces(forces)?;
+        Ok(self.book(report))
+    }
+
+    /// Keeps `report` as the last one and returns its powers.
+    fn book(&mut self, report: ContactReport) -> Powers {
         let powers = Powers {
             external: report.wall_power,
             damping: report.normal_damping_power + report.tangential_damping_power,
             friction_energy: report.friction_dissipation,
         };
         self.last = report;
-        Ok(powers)
+        powers
     }
 
     /// Energy stored in the contact springs (J).

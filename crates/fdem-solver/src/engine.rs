@@ -643,7 +643,7 @@ impl Simulation {
     ///
     /// A step opens three parallel regions of the rayon pool with deformable bodies
     /// alone (kick, drift and the forces' reset; elements beside the contact detection;
-    /// kick), two more with rigid bodies and one for gravity. Call it from a worker of
+    /// kick), three more with rigid bodies and one for gravity. Call it from a worker of
     /// the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
     /// does: from any other thread every region is a hand-over to the pool and a wake-up.
     pub fn advance(&mut self) -> Result<(), SolverError> {

@@ -138,7 +138,8 @@ pub trait ForceContribution: Any + Send {
     /// contribution's own scratch: the engine runs it in parallel with the elements' forces
     /// and the contact detection, then calls [`ForceContribution::add_forces`] at the same
     /// state, in the order the contributions were added. A contribution that prepares must
-    /// give the same forces whether or not `prepare` came first. Nothing by default.
+    /// give the same forces at a state whether or not `prepare` came first at that state,
+    /// and must not use a preparation for any other state. Nothing by default.
     ///
     /// # Errors
     /// As [`ForceContribution::add_forces`].

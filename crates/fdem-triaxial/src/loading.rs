@@ -307,6 +307,8 @@ impl ForceContribution for PressurisedMembrane {
     }
 
     fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        self.areas.1 = None;
+        self.inner.forget_preparation();
         self.work.restore_numbers(values)
     }
 }

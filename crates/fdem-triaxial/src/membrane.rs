@@ -466,9 +466,16 @@ impl MembraneForces {
     }
 
     /// Sets the confining pressure (Pa; positive pushes toward the axis). A non-finite
-    /// value is refused by the next [`ForceContribution::add_forces`].
+    /// value is refused by the next force evaluation ([`ForceContribution::prepare`] or
+    /// [`ForceContribution::add_forces`]). A preparation made before is dropped.
     pub fn set_pressure(&mut self, pressure: f64) {
         self.pressure = pressure;
+        self.prepared.1 = None;
+    }
+    /// Drops a preparation ([`ForceContribution::prepare`]) that no force evaluation used:
+    /// the state it was made for is gone (a restored checkpoint).
+    pub(crate) fn forget_preparation(&mut self) {
+        self.prepared.1 = None;
     }
     /// The confining pressure (Pa).
     pub fn pressure(&self) -> f64 {
@@ -1156,7 +1163,7 @@ mod tests {
 
     /// The forces and power after `prepare` (triangles in parallel) equal those of
     /// `add_forces` alone to the bit (a large mesh, so that the pass splits into tasks);
-    /// a preparation for another time is not used.
+    /// a preparation for another time, or made before the pressure was set, is not used.
     #[test]
     fn prepared_forces_equal_the_forces_computed_on_the_spot() {
         let s = spec(40, 30, 0.2);
@@ -1187,6 +1194,14 @@ mod tests {
         mf.prepare(view(&moved, 1.0)).unwrap();
         let (f_again, _) = forces(&mut mf, &p, &v);
         assert_eq!(bits(&f_spot), bits(&f_again));
+        // A pressure set after the preparation: the forces of the new pressure.
+        mf.prepare(view(&p, 0.0)).unwrap();
+        mf.set_pressure(5e5);
+        let (f_new_pressure, _) = forces(&mut mf, &p, &v);
+        mf.set_pressure(5e5);
+        let (f_new_spot, _) = forces(&mut mf, &p, &v);
+        assert_eq!(bits(&f_new_pressure), bits(&f_new_spot));
+        assert_ne!(bits(&f_new_pressure), bits(&f_spot));
     }
 
     #[test]
