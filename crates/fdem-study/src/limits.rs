@@ -19,7 +19,7 @@ pub const MODULI: [f64; 4] = [40e9, 10e9, 2.5e9, 0.625e9];
 /// Seeds per modulus and model.
 pub const SEEDS: u64 = 3;
 /// Settling time of the preparations, in the time the platens take to close by one
-/// largest diameter (the default is two).
+/// largest diameter (twice `fdem_triaxial::DEFAULT_SETTLE_DIAMETERS`).
 const SETTLE_DIAMETERS: f64 = 8.0;
 
 /// The quick test at modulus `e` in `model` with elements of `order`, seed `seed`.
@@ -34,8 +34,8 @@ fn limit_run(
     spec.model = model;
     spec.mesh.order = order;
     spec.seed = seed;
-    // Four times the default settling time: the softest particles settle slowly, and
-    // the criterion ends the settling as soon as it holds.
+    // Twice the default settling time: the softest particles settle slowly, and the
+    // criterion ends the settling as soon as it holds.
     let d_max = spec.largest_simulated_size();
     spec.preparation.settle_time = Some(SETTLE_DIAMETERS * d_max / spec.preparation.platen_speed);
     spec.name = format!("quick-E{}GPa", e / 1e9);

@@ -725,7 +725,8 @@ fn place(
 ///    and z = height);
 /// 5. settling: platens fixed (a rebuild with the state and history restored) until the
 ///    unbalanced-force ratio is at most `preparation.unbalanced_force`, checked every
-///    `check_interval` steps, or the settling time runs out;
+///    `check_interval` steps, or the settling time runs out; then a stop, and settling
+///    again from rest while the ratio at rest is above the limit and time remains;
 /// 6. checks: no particle outside, overlaps and wall penetrations below the limit, the
 ///    unbalanced force small. A failed check is recorded in the report
 ///    ([`Checks::failures`]), not raised: the caller decides.
@@ -770,10 +771,21 @@ pub fn prepare(
         .build()
         .map_err(solver("settle"))?;
     compacted.restore_into(&mut sim, true)?;
-    let settle_time = prep.settle_time.unwrap_or(2.0 * d_max / prep.platen_speed);
-    let settling = settle(&mut sim, spec, settle_time, d_min, observer)?;
-    // The specimen is kept at rest.
-    let last = quench(&mut sim)?;
+    let interval = prep.check_interval;
+    let settle_time = prep.settle_time_or_default(d_max);
+    let max_steps = ((settle_time / (dt * interval as f64)).ceil() as u64).max(1) * interval;
+    let mut settling = settle(&mut sim, spec, max_steps, d_min, observer)?;
+    // The specimen is kept at rest. At rest the contacts' damping forces vanish, so the
+    // ratio that ended settling can be above the limit again: settle on from rest while
+    // steps remain (a packing that passes at rest is stopped once, as before).
+    let mut last = quench(&mut sim)?;
+    let f_ref = spec.confining_pressure * d_min * d_min;
+    while settling.steps < max_steps && unbalanced_force_ratio(&sim, f_ref) > prep.unbalanced_force
+    {
+        let more = settle(&mut sim, spec, max_steps - settling.steps, d_min, observer)?;
+        settling = settling.then(more);
+        last = quench(&mut sim)?;
+    }
 
     let checks = checks(spec, &sim, d_min);
     let inner_volume = spec.inner_volume();
@@ -912,20 +924,31 @@ struct Settling {
     residual_kinetic_energy: f64,
 }
 
+impl Settling {
+    /// This settling followed by `more` from where it ended.
+    fn then(self, more: Settling) -> Settling {
+        Settling {
+            steps: self.steps + more.steps,
+            settled: more.settled,
+            quenches: self.quenches + more.quenches,
+            residual_kinetic_energy: more.residual_kinetic_energy,
+        }
+    }
+}
+
 /// Settling with kinetic damping (every node stopped when the kinetic energy has passed
 /// a peak) until the unbalanced-force ratio reaches `preparation.unbalanced_force` or
-/// `settle_time` has passed.
+/// `max_steps` (a multiple of `preparation.check_interval`) have passed.
 fn settle(
     sim: &mut Simulation,
     spec: &SpecimenSpec,
-    settle_time: f64,
+    max_steps: u64,
     d_min: f64,
     observer: &mut dyn Observer,
 ) -> Result<Settling, TriaxialError> {
     let prep = &spec.preparation;
     let interval = prep.check_interval;
     let f_ref = spec.confining_pressure * d_min * d_min;
-    let max_steps = ((settle_time / (sim.dt() * interval as f64)).ceil() as u64).max(1) * interval;
     observer.phase(Phase::Settle, max_steps);
     let (mut steps, mut settled, mut quenches) = (0, false, 0u64);
     let (mut ke_prev, mut rising) = (0.0, false);

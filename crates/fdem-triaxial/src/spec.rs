@@ -114,8 +114,9 @@ pub struct PreparationSection {
     /// Default 0.02.
     #[serde(default = "default_unbalanced", deserialize_with = "fraction")]
     pub unbalanced_force: f64,
-    /// Longest settling time after the platens stop (s), > 0. Default: the time the
-    /// platens take to close by two of the largest simulated diameters.
+    /// Longest settling time after the platens stop (s), > 0. Default
+    /// ([`PreparationSection::settle_time_or_default`]): the time the platens take to
+    /// close by [`DEFAULT_SETTLE_DIAMETERS`] of the largest simulated diameters.
     #[serde(
         default,
         deserialize_with = "positive_opt",
@@ -128,6 +129,21 @@ pub struct PreparationSection {
     /// Gravitational acceleration (m/s^2); default zero (it breaks exact scaling).
     #[serde(default, deserialize_with = "vector")]
     pub gravity: [f64; 3],
+}
+
+/// The default longest settling time, in the time the platens take to close by this
+/// many largest diameters. Settling ends as soon as the unbalanced-force criterion holds,
+/// so the cap costs nothing to a packing that settles; it only decides how long one that
+/// has not settled is given before its check fails.
+pub const DEFAULT_SETTLE_DIAMETERS: f64 = 4.0;
+
+impl PreparationSection {
+    /// The longest settling time (s): `settle_time`, or by default the time the platens
+    /// take to close by [`DEFAULT_SETTLE_DIAMETERS`] diameters of `d_max`.
+    pub fn settle_time_or_default(&self, d_max: f64) -> f64 {
+        self.settle_time
+            .unwrap_or(DEFAULT_SETTLE_DIAMETERS * d_max / self.platen_speed)
+    }
 }
 
 impl Default for PreparationSection {
