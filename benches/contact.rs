@@ -5,8 +5,10 @@
 //! linear spheres (d = 15 mm, identity orientation) whose axis vertices overlap their
 //! neighbours by 0.3 of the contact margin, with small random velocities, and times one
 //! evaluation with 1 and 2 rayon threads. Criterion's throughput is in surface-node
-//! contact evaluations per second. `FDEM_BENCH_64K=1` adds the 64k-particle lattice
-//! (2.7 M surface nodes, about 3 GB).
+//! contact evaluations per second. The `-shuffled` lattices number their bodies at random
+//! in space, as a prepared specimen does (placement order), so that the faces and nodes a
+//! surface node meets lie anywhere in the arrays. `FDEM_BENCH_64K=1` adds the
+//! 64k-particle lattices (2.7 M surface nodes, about 3 GB each).
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -23,8 +25,26 @@ struct Packing {
     surface_nodes: usize,
 }
 
-/// `n^3` spheres on a simple cubic lattice, overlapping by 0.3 margin along the axes.
-fn packing(n: usize) -> Packing {
+/// The lattice sites `0..n^3` in the order the bodies are numbered: lattice order, or with
+/// `shuffled` a fixed random permutation (xorshift Fisher-Yates), as in a prepared
+/// specimen, whose particles are numbered in placement order, at random in space.
+fn site_order(n: usize, shuffled: bool) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..n * n * n).collect();
+    if shuffled {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        for i in (1..order.len()).rev() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            order.swap(i, (state % (i as u64 + 1)) as usize);
+        }
+    }
+    order
+}
+
+/// `n^3` spheres on a simple cubic lattice, overlapping by 0.3 margin along the axes,
+/// numbered in lattice order or, with `shuffled`, at random.
+fn packing(n: usize, shuffled: bool) -> Packing {
     let d = 0.015;
     let mesh = sphere_mesh(&SphereSpec {
         level: 1,
@@ -44,15 +64,11 @@ fn packing(n: usize) -> Packing {
     let margin = ContactModel::suggested_margin(&template, &mesh.nodes).expect("margin");
     let spacing = 2.0 * half_extent - 0.3 * margin;
     let mut assembly = MeshAssembly::new();
-    for i in 0..n {
-        for j in 0..n {
-            for k in 0..n {
-                let t = [i, j, k].map(|c| c as f64 * spacing);
-                assembly
-                    .push_instance(&mesh, &Placement::at(t))
-                    .expect("placement");
-            }
-        }
+    for site in site_order(n, shuffled) {
+        let t = [site / (n * n), (site / n) % n, site % n].map(|c| c as f64 * spacing);
+        assembly
+            .push_instance(&mesh, &Placement::at(t))
+            .expect("placement");
     }
     let node_mass = 2650.0 * mesh.volume() / mesh.n_nodes() as f64;
     let masses = vec![node_mass; assembly.n_nodes()];
@@ -74,10 +90,16 @@ fn packing(n: usize) -> Packing {
     }
 }
 
-fn sizes() -> Vec<(usize, &'static str)> {
-    let mut s = vec![(10, "1k"), (20, "8k")];
+/// The lattices: side, label, bodies numbered at random.
+fn sizes() -> Vec<(usize, &'static str, bool)> {
+    let mut s = vec![
+        (10, "1k", false),
+        (20, "8k", false),
+        (20, "8k-shuffled", true),
+    ];
     if std::env::var_os("FDEM_BENCH_64K").is_some() {
-        s.push((40, "64k"));
+        s.push((40, "64k", false));
+        s.push((40, "64k-shuffled", true));
     }
     s
 }
@@ -100,8 +122,8 @@ fn add_forces(c: &mut Criterion) {
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(3));
     group.warm_up_time(Duration::from_secs(1));
-    for (n, label) in sizes() {
-        let mut p = packing(n);
+    for (n, label, shuffled) in sizes() {
+        let mut p = packing(n, shuffled);
         let mut forces = vec![[0.0; 3]; p.positions.len()];
         let first = p
             .model
@@ -154,7 +176,7 @@ fn add_forces(c: &mut Criterion) {
 /// The kernels alone on the candidate pairs of the 1k packing (node, face) in visiting
 /// order, single-threaded.
 fn kernels(c: &mut Criterion) {
-    let mut p = packing(10);
+    let mut p = packing(10, false);
     let mut forces = vec![[0.0; 3]; p.positions.len()];
     p.model
         .add_forces(&p.positions, &p.velocities, 0.0, 1e-7, &mut forces)

@@ -171,6 +171,9 @@ pub(crate) struct BroadPhase {
     chunk_starts: Vec<Vec<usize>>,
     /// Number of candidate pairs of the last build.
     pub(crate) pairs: usize,
+    /// Per triangle, whether a candidate list may name it: every face of the lists is
+    /// marked; a face whose pairs a refresh dropped stays marked until the next build.
+    listed: Vec<bool>,
     /// Enlarged triangle boxes at the last build.
     boxes: Vec<[f64; 6]>,
     layout: Layout,
@@ -588,7 +591,10 @@ impl BroadPhase {
             cands.clear();
             cands.resize(running, Candidate::default());
         }
+        self.listed.clear();
+        self.listed.resize(surface.triangles.len(), false);
         for &(k, cand) in self.found.iter().flatten() {
+            self.listed[cand.triangle as usize] = true;
             let k = k as usize;
             let slot = &mut self.cursor[k];
             self.chunk_cands[k / CHUNK][*slot] = cand;
@@ -605,6 +611,12 @@ impl BroadPhase {
                     }
                 }
             });
+    }
+
+    /// Per triangle, whether a candidate list may name it (all `false` before the first
+    /// build): the faces whose planes the narrow phase reads.
+    pub(crate) fn listed_faces(&self) -> &[bool] {
+        &self.listed
     }
 
     /// Candidate faces of surface node `k`.

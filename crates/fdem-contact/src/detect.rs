@@ -14,6 +14,7 @@ use crate::events::{Reason, Rejection};
 use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle};
+use crate::prefetch::prefetch;
 use crate::sheet::{self, Sheets};
 use crate::vec3::{add, norm, scale, sub};
 use crate::wall::wall_distance;
@@ -200,26 +201,12 @@ impl Ctx<'_> {
     /// A hint changes no value.
     #[inline(always)]
     fn prefetch_planes(&self, k: usize) {
-        #[cfg(target_arch = "x86_64")]
         for c in self.broad.candidates(k) {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let p = self.planes.as_ptr().wrapping_add(c.triangle as usize);
-            // SAFETY: a prefetch never faults and reads nothing the program sees; `p` points
-            // into `planes` (every candidate's triangle has a plane).
-            #[allow(unused_unsafe)]
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>())
-            };
+            prefetch(self.planes, c.triangle as usize);
             for &j in &c.nodes {
-                let q = self.positions.as_ptr().wrapping_add(j as usize);
-                #[allow(unused_unsafe)]
-                unsafe {
-                    _mm_prefetch::<_MM_HINT_T0>(q.cast::<i8>())
-                };
+                prefetch(self.positions, j as usize);
             }
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = k;
     }
 
     /// All contacts of surface node `k`: the best face per other body, then the walls.

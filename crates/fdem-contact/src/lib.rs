@@ -125,6 +125,7 @@ mod law;
 mod model;
 pub mod narrow;
 mod params;
+mod prefetch;
 mod sheet;
 mod surface;
 mod vec3;

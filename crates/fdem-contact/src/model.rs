@@ -10,6 +10,7 @@ use crate::detect::{ChunkScratch, Ctx};
 use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
+use crate::prefetch::prefetch;
 use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
 use crate::{
@@ -130,14 +131,27 @@ fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
     }
 }
 
-/// Every face's unit normal and plane offset at `positions` into `planes`.
-fn face_planes(planes: &mut Vec<[f64; 4]>, triangles: &[[usize; 3]], positions: &[[f64; 3]]) {
+/// The unit normal and plane offset at `positions` of every face marked in `listed` (the
+/// faces the candidate lists may name) into `planes`, indexed by triangle; the others are
+/// left as they were (no candidate reads them). An empty `listed` (before the first build)
+/// computes none.
+fn face_planes(
+    planes: &mut Vec<[f64; 4]>,
+    triangles: &[[usize; 3]],
+    positions: &[[f64; 3]],
+    listed: &[bool],
+) {
     planes.resize(triangles.len(), [0.0; 4]);
     planes
         .par_iter_mut()
         .zip(triangles.par_iter())
+        .zip(listed.par_iter())
         .with_min_len(CHUNK)
-        .for_each(|(plane, tri)| *plane = unit_plane(tri.map(|i| positions[i])));
+        .for_each(|((plane, tri), &listed)| {
+            if listed {
+                *plane = unit_plane(tri.map(|i| positions[i]));
+            }
+        });
 }
 
 /// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
@@ -1130,12 +1144,20 @@ impl ContactModel {
         self.check_length("velocities", velocities.len())?;
 
         // Pass 1: finiteness, Verlet-skin drift, fastest node (a fastest node too fast for
-        // the depth limit grows it, within its cap); beside it, every face's plane (they
-        // depend on the positions alone, not on the broad phase).
+        // the depth limit grows it, within its cap); beside it, the planes of the faces
+        // the candidate lists name (they depend on the positions alone; a renewal of the
+        // lists below computes those of the new lists).
         let mut planes = std::mem::take(&mut self.planes);
         let (scan, ()) = rayon::join(
             || self.scan(positions, velocities),
-            || face_planes(&mut planes, &self.surface.triangles, positions),
+            || {
+                face_planes(
+                    &mut planes,
+                    &self.surface.triangles,
+                    positions,
+                    self.broad.listed_faces(),
+                )
+            },
         );
         self.planes = planes;
         self.wall_shapes.clear();
@@ -1149,7 +1171,7 @@ impl ContactModel {
             }
             result => result?,
         };
-        let mut renewal = self.rebuild_if_due(positions, scan.max_drift2);
+        let mut renewal = self.renew_if_due(positions, scan.max_drift2);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
         // contact too deep for the depth limit, or a node moving too far relative to a
@@ -1161,7 +1183,7 @@ impl ContactModel {
                 Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
-                    match self.rebuild_if_due(positions, scan.max_drift2) {
+                    match self.renew_if_due(positions, scan.max_drift2) {
                         Renewal::None => {}
                         again => renewal = again,
                     }
@@ -1358,6 +1380,21 @@ impl ContactModel {
         Ok(v_max)
     }
 
+    /// [`ContactModel::rebuild_if_due`], then, when the lists were renewed, the planes of
+    /// the faces they name now (a face new to the lists has no plane of this step yet).
+    fn renew_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> Renewal {
+        let renewal = self.rebuild_if_due(positions, max_drift2);
+        if renewal != Renewal::None {
+            face_planes(
+                &mut self.planes,
+                &self.surface.triangles,
+                positions,
+                self.broad.listed_faces(),
+            );
+        }
+        renewal
+    }
+
     /// Rebuilds the broad phase when asked to, before the first evaluation, or when a
     /// surface node has drifted farther than half the margin (`max_drift2` is the square
     /// of the largest drift); in the last case only the bodies that drifted are refreshed
@@ -1478,7 +1515,9 @@ impl ContactModel {
         }
         self.contacts.clear();
         for scratch in &self.chunks {
-            for c in &scratch.contacts {
+            let contacts = &scratch.contacts;
+            for (i, c) in contacts.iter().enumerate() {
+                prefetch_spread(&self.surface.triangles, forces, contacts, i);
                 let f = c.force();
                 let node = &mut forces[c.node];
                 *node = add(*node, f);
@@ -1523,6 +1562,36 @@ impl ContactModel {
     /// Lumped mass of surface node `k` (kg).
     pub fn surface_node_mass(&self, k: usize) -> Option<f64> {
         self.masses.get(k).copied()
+    }
+}
+
+/// How many contacts ahead the serial spread asks for the forces it will add into; the
+/// triangles are asked for twice as far ahead ([`prefetch_spread`]).
+const SPREAD_AHEAD: usize = 8;
+
+/// Asks the memory system for what the spread of later contacts will touch: the face
+/// triangle of the contact `2 SPREAD_AHEAD` after `contacts[i]`, and the forces of the
+/// node and the face nodes of the one `SPREAD_AHEAD` after it (whose triangle was asked
+/// for earlier). The faces lie on other bodies, anywhere in the arrays: without the
+/// hints the serial spread waits for two cache misses in a row per contact, the triangle
+/// and then its nodes' forces. A hint changes no value.
+#[inline(always)]
+fn prefetch_spread(
+    triangles: &[[usize; 3]],
+    forces: &[[f64; 3]],
+    contacts: &[NodeContact],
+    i: usize,
+) {
+    if let Some(t) = contacts.get(i + 2 * SPREAD_AHEAD).and_then(|c| c.face) {
+        prefetch(triangles, t);
+    }
+    if let Some(c) = contacts.get(i + SPREAD_AHEAD) {
+        prefetch(forces, c.node);
+        if let Some(tri) = c.face.and_then(|t| triangles.get(t)) {
+            for &j in tri {
+                prefetch(forces, j);
+            }
+        }
     }
 }
 

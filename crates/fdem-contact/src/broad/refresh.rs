@@ -404,6 +404,7 @@ impl BroadPhase {
         let n = surface.surface_nodes.len();
         let mut new_by_chunk: Vec<Vec<(u32, Candidate)>> = vec![Vec::new(); n.div_ceil(CHUNK)];
         for &(k, c) in found.iter().flatten() {
+            self.listed[c.triangle as usize] = true;
             new_by_chunk[k as usize / CHUNK].push((k, c));
         }
         let node_body = &surface.node_body;
