@@ -4,14 +4,16 @@
 //! `cargo bench -p fdem-benches --bench contact` builds simple cubic lattices of level-1
 //! linear spheres (d = 15 mm, identity orientation) whose axis vertices overlap their
 //! neighbours by 0.3 of the contact margin, with small random velocities, and times one
-//! evaluation with 1 and 2 rayon threads. Criterion's throughput is in surface-node
-//! contact evaluations per second. The `-shuffled` lattices number their bodies at random
-//! in space, as a prepared specimen does (placement order), so that the faces and nodes a
-//! surface node meets lie anywhere in the arrays. `FDEM_BENCH_64K=1` adds the
+//! evaluation with 1 and 2 rayon threads, whole (`Hand`, `Parry`: the two narrow-phase
+//! kernels) and in its two halves (`evaluate`: the parallel passes; `spread`: the serial
+//! addition of the forces). Criterion's throughput is in surface-node contact evaluations
+//! per second. The `-shuffled` lattices number their bodies at random in space, as a
+//! prepared specimen does (placement order), so that the faces and nodes a surface node
+//! meets lie anywhere in the arrays. `FDEM_BENCH_64K=1` adds the
 //! 64k-particle lattices (2.7 M surface nodes, about 3 GB each).
 
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use fdem_contact::narrow::{project_hand, project_parry};
@@ -155,6 +157,33 @@ fn add_forces(c: &mut Criterion) {
                 });
             }
             p.model.set_projection_kernel(ProjectionKernel::Hand);
+            // The two halves of a step, each timed alone: the parallel passes (scan,
+            // planes, narrow phase and law) and the serial spread of the forces.
+            for (half, evaluate) in [("evaluate", true), ("spread", false)] {
+                let id = BenchmarkId::new(format!("{half}/{threads}t"), label);
+                group.bench_function(id, |b| {
+                    pool.install(|| {
+                        b.iter_custom(|iters| {
+                            let mut timed = Duration::ZERO;
+                            for _ in 0..iters {
+                                let start = Instant::now();
+                                p.model
+                                    .evaluate(&p.positions, &p.velocities, 0.0, 1e-7)
+                                    .expect("evaluation");
+                                let between = Instant::now();
+                                let r = p.model.add_evaluated_forces(&mut forces).expect("spread");
+                                black_box(r.contacts);
+                                timed += if evaluate {
+                                    between - start
+                                } else {
+                                    between.elapsed()
+                                };
+                            }
+                            timed
+                        })
+                    })
+                });
+            }
             let id = BenchmarkId::new(format!("rebuild+step/{threads}t"), label);
             group.bench_function(id, |b| {
                 pool.install(|| {
