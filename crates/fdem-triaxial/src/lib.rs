@@ -87,7 +87,7 @@ pub use prepare::{
     COLUMN_GROWTH, COLUMN_TRIES, Checks, FORCE_FLOOR, MAX_NODES, Observer,
     PREPARATION_ENERGY_TOLERANCE, Phase, PreparationReport, PreparedSpecimen, Silent, Snapshot,
     Status, WALL_BOTTOM, WALL_CYLINDER, WALL_TOP, check_memory, particle_sections,
-    preparation_walls, prepare, specimen_time_step, unbalanced_force_ratio,
+    preparation_walls, prepare, reference_force, specimen_time_step, unbalanced_force_ratio,
 };
 pub use probe::{ProbeOutcome, STABLE_ENERGY_ERROR, StabilityClass, probe, probe_bound};
 pub use spec::{

@@ -444,6 +444,13 @@ fn history(sim: &Simulation) -> Vec<(usize, Counterpart, [f64; 3])> {
 /// no force in [`unbalanced_force_ratio`].
 pub const FORCE_FLOOR: f64 = 1e-6;
 
+/// The reference contact force `sigma_0 d_min^2` (N) of a specimen confined at `sigma_0`
+/// (Pa) whose smallest particle has diameter `d_min` (m): the scale against which
+/// [`unbalanced_force_ratio`] floors its forces.
+pub fn reference_force(sigma_0: f64, d_min: f64) -> f64 {
+    sigma_0 * d_min * d_min
+}
+
 /// Unbalanced-force ratio of `sim`: `sum_b |F_b| / max(sum_b sum_(contacts on b) |f_c|,
 /// n_b FORCE_FLOOR f_ref)`, with `F_b` the net force on particle `b` (the sum of its node
 /// forces: elastic forces cancel), each node contact counted on the node's particle and,
@@ -636,7 +643,7 @@ fn checks(spec: &SpecimenSpec, sim: &Simulation, d_min: f64) -> Checks {
             .fold(0.0, f64::max)
     });
     let overlap_limit = spec.max_overlap() * d_min;
-    let unbalanced = unbalanced_force_ratio(sim, spec.confining_pressure * d_min * d_min);
+    let unbalanced = unbalanced_force_ratio(sim, reference_force(spec.confining_pressure, d_min));
     let limit = spec.preparation.unbalanced_force;
     let mut failures = Vec::new();
     if particles_outside > 0 {
@@ -779,7 +786,7 @@ pub fn prepare(
     // ratio that ended settling can be above the limit again: settle on from rest while
     // steps remain (a packing that passes at rest is stopped once, as before).
     let mut last = quench(&mut sim)?;
-    let f_ref = spec.confining_pressure * d_min * d_min;
+    let f_ref = reference_force(spec.confining_pressure, d_min);
     while settling.steps < max_steps && unbalanced_force_ratio(&sim, f_ref) > prep.unbalanced_force
     {
         let more = settle(&mut sim, spec, max_steps - settling.steps, d_min, observer)?;
@@ -948,7 +955,7 @@ fn settle(
 ) -> Result<Settling, TriaxialError> {
     let prep = &spec.preparation;
     let interval = prep.check_interval;
-    let f_ref = spec.confining_pressure * d_min * d_min;
+    let f_ref = reference_force(spec.confining_pressure, d_min);
     observer.phase(Phase::Settle, max_steps);
     let (mut steps, mut settled, mut quenches) = (0, false, 0u64);
     let (mut ke_prev, mut rising) = (0.0, false);

@@ -12,7 +12,7 @@ use crate::measure::{
     hoop_strain, membrane_radial_force, summarize, summarize_lateral,
 };
 use crate::plot::{CurvePlot, CurveSeries, plot_curves};
-use crate::{PreparedSpecimen, TriaxialError, unbalanced_force_ratio};
+use crate::{PreparedSpecimen, TriaxialError, reference_force, unbalanced_force_ratio};
 use fdem_core::number::Number;
 use fdem_mesh::vtu::{CellNodes, VtuField, VtuFrame, write_pvd, write_vtu};
 use fdem_solver::output::{BoundaryBody, VtkSeries, contact_snapshot_text, write_atomically};
@@ -910,7 +910,7 @@ pub fn run_test(
         prepared,
         options,
         sigma_0,
-        reference_force: sigma_0 * d_min * d_min,
+        reference_force: reference_force(sigma_0, d_min),
         vtk,
         boundary_frames: Vec::new(),
         escape_checks: 0,
