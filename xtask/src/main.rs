@@ -179,17 +179,13 @@ fn triaxial(rest: &[String]) -> anyhow::Result<()> {
     let has_order = given("--order");
     let has_out = given("--out");
     let mut args: Vec<String> = rest.to_vec();
-    // Rigid (or auto) particles of a preset get the linear surface (42 contact nodes at
-    // level 1) unless --order says otherwise.
-    let rigid = ["rigid", "auto"].iter().any(|m| {
-        rest.windows(2).any(|w| w[0] == "--model" && w[1] == *m) || given(&format!("--model={m}"))
-    });
-    let preset = !(given("--config") || given("--specimen") || quick);
+    // The main job is E4s with linear meshes; a preset's rigid or auto particles get
+    // linear surfaces from `fdem triaxial` itself.
     if !chooses_specimen {
         args.extend(["--test", "E4s"].map(String::from));
-    }
-    if !has_order && (!chooses_specimen || (rigid && preset)) {
-        args.extend(["--order", "linear"].map(String::from));
+        if !has_order {
+            args.extend(["--order", "linear"].map(String::from));
+        }
     }
     if !has_out {
         let dir = if quick { "out/quick" } else { "out/triaxial" };

@@ -505,6 +505,37 @@ fn unwritable_outputs_are_refused_before_the_work() {
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
 }
 
+/// `fdem specimen` and `fdem triaxial` give a preset's rigid or auto particles linear
+/// surfaces unless --order is given, as `fdem study` does.
+#[test]
+fn a_rigid_preset_gets_linear_surfaces_unless_an_order_is_given() {
+    let order_of = |extra: &[&str]| {
+        let mut args = vec!["specimen", "--test", "B2", "--toml"];
+        args.extend_from_slice(extra);
+        let out = fdem(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        let orders: Vec<&str> = text
+            .lines()
+            .filter_map(|l| l.strip_prefix("order = \""))
+            .collect();
+        assert_eq!(orders.len(), 1, "{text}");
+        orders[0].trim_end_matches('"').to_string()
+    };
+    assert_eq!(order_of(&[]), "quadratic");
+    assert_eq!(order_of(&["--model", "rigid"]), "linear");
+    assert_eq!(order_of(&["--model", "auto"]), "linear");
+    assert_eq!(
+        order_of(&["--model", "rigid", "--order", "quadratic"]),
+        "quadratic"
+    );
+    assert_eq!(order_of(&["--model", "deformable"]), "quadratic");
+}
+
 /// Flags that do not go together are refused in one line instead of one of them being
 /// ignored.
 #[test]

@@ -6,7 +6,7 @@ use crate::StudyError;
 use fdem_core::hash::Fnv1a;
 use fdem_mesh::ElementOrder;
 use fdem_solver::ParticleModel;
-use fdem_triaxial::{Preset, SpecimenSpec, quick_spec};
+use fdem_triaxial::{Preset, SpecimenSpec, quick_spec, surface_order};
 use serde::Deserialize;
 use std::path::Path;
 
@@ -275,9 +275,7 @@ fn custom_series(entry: SeriesEntry, base: &Path, file: &Path) -> Result<Series,
 /// The element order of a study's runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum OrderChoice {
-    /// Linear surfaces for rigid and `auto` particles (their surface is all that counts,
-    /// and the linear one has a quarter of the contact nodes), the specimen's own order
-    /// for deformable ones.
+    /// The order [`surface_order`] chooses for the study's model.
     #[default]
     Auto,
     /// This order for every run.
@@ -419,10 +417,7 @@ pub fn expand(
                 spec.model = options.model;
                 spec.mesh.order = match options.order {
                     OrderChoice::Fixed(order) => order,
-                    OrderChoice::Auto if options.model != ParticleModel::Deformable => {
-                        ElementOrder::Linear
-                    }
-                    OrderChoice::Auto => spec.mesh.order,
+                    OrderChoice::Auto => surface_order(options.model, spec.mesh.order),
                 };
                 if let Some(strain) = options.strain {
                     spec.test.target_strain = strain;

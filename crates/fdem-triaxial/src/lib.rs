@@ -94,7 +94,7 @@ pub use spec::{
     DEFAULT_INERTIAL_NUMBER, DEFAULT_SETTLE_DIAMETERS, DEFAULT_SOLID_FRACTION, DENSEST_PACKING,
     FRACTION_SUM_TOLERANCE, MAX_OVERLAP_DEFORMABLE, MAX_OVERLAP_RIGID, ORIGINAL_SIZE, PRESETS,
     PreparationSection, Preset, SERIES_SIZE, Simulated, SizeClass, SpecimenMesh, SpecimenSpec,
-    default_material,
+    default_material, surface_order,
 };
 pub use test_run::{
     ConsolidationResult, PhaseCost, SilentTest, TestObserver, TestOptions, TestPhase, TestPlan,

@@ -266,6 +266,18 @@ pub struct Preset {
     pub exact_scaling: bool,
 }
 
+/// The element order of a specimen's particles in `model` when none is asked for: linear
+/// surfaces for rigid and `auto` particles (a rigid particle uses only its surface, and
+/// the level-1 linear surface has 42 contact nodes against 162 for the quadratic one; an
+/// `auto` class left deformable is then a linear tetrahedral mesh), `own` (the specimen's
+/// order) for deformable ones.
+pub fn surface_order(model: ParticleModel, own: ElementOrder) -> ElementOrder {
+    match model {
+        ParticleModel::Deformable => own,
+        ParticleModel::Rigid | ParticleModel::Auto => ElementOrder::Linear,
+    }
+}
+
 const fn preset(name: &'static str, binary: bool, h: f64, exact: bool) -> Preset {
     Preset {
         name,
@@ -314,6 +326,15 @@ impl Preset {
                     .collect::<Vec<_>>()
                     .join(", "),
             })
+    }
+
+    /// The specimen of this test in `model` with element `order`: [`Preset::spec`] with
+    /// the model set and, without an order, [`surface_order`]'s choice for the model.
+    pub fn spec_in(&self, model: ParticleModel, order: Option<ElementOrder>) -> SpecimenSpec {
+        let mut spec = self.spec();
+        spec.model = model;
+        spec.mesh.order = order.unwrap_or_else(|| surface_order(model, spec.mesh.order));
+        spec
     }
 
     /// The specimen of this test: phi 300 x 600 mm, 2 mm membrane, nominal solid fraction
@@ -865,6 +886,33 @@ impl SpecimenSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A preset in the rigid or auto model gets linear surfaces unless an order is given;
+    /// deformable particles keep the preset's quadratic elements.
+    #[test]
+    fn a_preset_s_order_follows_its_model_unless_given() {
+        let b2 = Preset::find("B2").unwrap();
+        assert_eq!(b2.spec().mesh.order, ElementOrder::Quadratic);
+        for (model, order, expected) in [
+            (ParticleModel::Deformable, None, ElementOrder::Quadratic),
+            (ParticleModel::Rigid, None, ElementOrder::Linear),
+            (ParticleModel::Auto, None, ElementOrder::Linear),
+            (
+                ParticleModel::Rigid,
+                Some(ElementOrder::Quadratic),
+                ElementOrder::Quadratic,
+            ),
+            (
+                ParticleModel::Deformable,
+                Some(ElementOrder::Linear),
+                ElementOrder::Linear,
+            ),
+        ] {
+            let spec = b2.spec_in(model, order);
+            assert_eq!(spec.model, model);
+            assert_eq!(spec.mesh.order, expected, "{model:?} {order:?}");
+        }
+    }
 
     /// Definitions built in code get the rules of the schema, with the key and the
     /// message of the TOML reader where it has one.

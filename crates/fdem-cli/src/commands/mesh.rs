@@ -1,19 +1,11 @@
 //! `fdem mesh`: one particle mesh, its statistics and optionally a VTU file.
 
+use super::specimen::OrderArg;
 use super::{Format, positive_number};
 use anyhow::{Context, bail};
-use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
+use fdem_mesh::{Sizing, SphereSpec, sphere_mesh};
 use serde_json::json;
 use std::path::PathBuf;
-
-/// Element order as typed on the command line.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OrderArg {
-    /// 4-node tetrahedra.
-    Linear,
-    /// 10-node tetrahedra (mid-edge nodes on straight edges).
-    Quadratic,
-}
 
 /// How the mesh is sized relative to the nominal diameter.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,10 +50,7 @@ pub fn run(args: &MeshArgs) -> anyhow::Result<()> {
     }
     let spec = SphereSpec {
         level: args.level,
-        order: match args.order {
-            OrderArg::Linear => ElementOrder::Linear,
-            OrderArg::Quadratic => ElementOrder::Quadratic,
-        },
+        order: args.order.order(),
         diameter,
         sizing: match args.sizing {
             SizingArg::Inscribed => Sizing::Inscribed,

@@ -19,8 +19,33 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub enum OrderArg {
     /// 4-node tetrahedra.
     Linear,
-    /// 10-node tetrahedra.
+    /// 10-node tetrahedra (mid-edge nodes on straight edges).
     Quadratic,
+}
+
+impl OrderArg {
+    /// The order this names.
+    pub fn order(self) -> ElementOrder {
+        match self {
+            OrderArg::Linear => ElementOrder::Linear,
+            OrderArg::Quadratic => ElementOrder::Quadratic,
+        }
+    }
+}
+
+/// The preset `name` with the command line's model and order: a model given without an
+/// order gets [`fdem_triaxial::surface_order`]'s choice (linear surfaces for rigid and
+/// `auto` particles), as in every command that runs presets.
+pub(crate) fn preset_spec(
+    name: &str,
+    model: Option<ModelArg>,
+    order: Option<OrderArg>,
+) -> anyhow::Result<SpecimenSpec> {
+    let preset = Preset::find(name)?;
+    Ok(match model {
+        Some(m) => preset.spec_in(m.model(), order.map(OrderArg::order)),
+        None => preset.spec(),
+    })
 }
 
 /// Particle model as typed on the command line.
@@ -80,7 +105,8 @@ pub struct SpecimenArgs {
     /// Override the mesh subdivision level (0 to 4).
     #[arg(long)]
     level: Option<u32>,
-    /// Override the element order.
+    /// Override the element order (without it, a preset in the rigid or auto model gets
+    /// linear surfaces).
     #[arg(long, value_enum)]
     order: Option<OrderArg>,
     /// Override the particle model.
@@ -192,7 +218,7 @@ impl Observer for PreparationProgress {
 /// The definition named by --test or --file, with the command-line overrides applied.
 fn definition(args: &SpecimenArgs) -> anyhow::Result<SpecimenSpec> {
     let mut spec = match (&args.test, &args.file) {
-        (Some(name), None) => Preset::find(name)?.spec(),
+        (Some(name), None) => preset_spec(name, args.model, args.order)?,
         (None, Some(path)) => SpecimenSpec::load(path)?,
         _ => bail!("give one of --test NAME, --file SPEC.toml or --specimen FILE"),
     };
@@ -200,10 +226,7 @@ fn definition(args: &SpecimenArgs) -> anyhow::Result<SpecimenSpec> {
         spec.mesh.level = level;
     }
     if let Some(order) = args.order {
-        spec.mesh.order = match order {
-            OrderArg::Linear => ElementOrder::Linear,
-            OrderArg::Quadratic => ElementOrder::Quadratic,
-        };
+        spec.mesh.order = order.order();
     }
     if let Some(model) = args.model {
         spec.model = model.model();

@@ -5,7 +5,6 @@
 use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress};
 use crate::commands::triaxial::{TestProgress, check_strain, duration};
 use anyhow::bail;
-use fdem_mesh::ElementOrder;
 use fdem_study::run::PlannedRun;
 use fdem_study::{
     OrderChoice, Provenance, RunDef, RunRecord, StudyObserver, StudyOptions, StudyPlan,
@@ -186,11 +185,9 @@ fn options(args: &StudyArgs) -> anyhow::Result<StudyOptions> {
     check_strain(args.strain)?;
     Ok(StudyOptions {
         model: args.model.model(),
-        order: match args.order {
-            None => OrderChoice::Auto,
-            Some(OrderArg::Linear) => OrderChoice::Fixed(ElementOrder::Linear),
-            Some(OrderArg::Quadratic) => OrderChoice::Fixed(ElementOrder::Quadratic),
-        },
+        order: args
+            .order
+            .map_or(OrderChoice::Auto, |o| OrderChoice::Fixed(o.order())),
         seeds: args.seeds,
         tests: args.tests.clone(),
         strain: args.strain,

@@ -1,11 +1,10 @@
 //! `fdem triaxial`: the numerical triaxial test end to end (docs/TRIAXIAL.md): prepare
 //! the specimen (or reuse a prepared one), consolidate, shear, write the outputs.
 
-use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, phase_bar};
+use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, phase_bar, preset_spec};
 use anyhow::{Context, bail};
-use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
-    Cached, PreparedSpecimen, Preset, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
+    Cached, PreparedSpecimen, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
     TestStatus, prepare, quick_spec, run_test, specimen_time_step,
 };
 use indicatif::ProgressBar;
@@ -41,7 +40,8 @@ pub struct TriaxialArgs {
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Override the element order of the particle meshes.
+    /// Override the element order of the particle meshes (without it, a preset in the
+    /// rigid or auto model gets linear surfaces).
     #[arg(long, value_enum)]
     order: Option<OrderArg>,
     /// Override the mesh subdivision level (0 to 4).
@@ -79,16 +79,13 @@ pub struct TriaxialArgs {
 /// The definition named by --test, --config or --quick with the overrides applied.
 fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
     let mut spec = match (&args.test, &args.config, args.quick) {
-        (Some(name), None, false) => Preset::find(name)?.spec(),
+        (Some(name), None, false) => preset_spec(name, args.model, args.order)?,
         (None, Some(path), false) => SpecimenSpec::load(path)?,
         (None, None, true) => quick_spec(),
         _ => bail!("give exactly one of --test NAME, --config FILE, --quick or --specimen FILE"),
     };
     if let Some(order) = args.order {
-        spec.mesh.order = match order {
-            OrderArg::Linear => ElementOrder::Linear,
-            OrderArg::Quadratic => ElementOrder::Quadratic,
-        };
+        spec.mesh.order = order.order();
     }
     if let Some(level) = args.level {
         spec.mesh.level = level;
