@@ -14,6 +14,8 @@
 //! - **The contact snapshot format** ([`snapshot`]): the node-level and pair-level CSV
 //!   files (docs/MICRO.md): headers, rows, their writer and the header-driven reader.
 //! - **A stable hash** ([`hash`]): FNV-1a, for file checksums and run keys.
+//! - **Space order** ([`space_order`]): the Morton (Z-order) curve, to number items that
+//!   are near in space near in memory.
 //! - **Numbers in messages** ([`number`]): [`number::Number`] prints a value plain where
 //!   that is short and in exponent form otherwise.
 //! - **Run identifiers** ([`run_id`]): the UTC start and the input's hash that name a
@@ -61,3 +63,4 @@ pub mod plot;
 pub mod run_id;
 pub mod sections;
 pub mod snapshot;
+pub mod space_order;

@@ -7,6 +7,7 @@
 //! the largest accepted (docs/SPECIMENS.md, "Preparation: the dynamic method", has the
 //! fractions reached).
 
+use fdem_core::space_order::morton_order;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::{Deserialize, Serialize};
@@ -137,8 +138,8 @@ impl Grid {
 
 /// Places spheres of the given diameters (with their size class) at random in `column`,
 /// without overlap: two spheres are at least `clearance` apart, and every sphere stays
-/// `clearance` inside the cylinder and its ends. The result is in placement order, largest
-/// diameters first (ties in the given order).
+/// `clearance` inside the cylinder and its ends. The result is numbered largest diameters
+/// first, and spheres of one diameter along a space-filling curve ([`number_in_space`]).
 ///
 /// Centres start uniformly at random in the region each sphere may occupy; then sweeps
 /// over all overlapping pairs (found through a grid of cell d_max + clearance) push each
@@ -228,7 +229,7 @@ pub fn place_spheres(
             }
         }
         match worst {
-            None => return Ok(placed),
+            None => return Ok(number_in_space(placed)),
             Some((_, i)) => last_worst = i,
         }
     }
@@ -237,6 +238,29 @@ pub fn place_spheres(
         particle: last_worst,
         diameter: placed[last_worst].diameter,
     })
+}
+
+/// Numbers each run of equal diameters along the Morton curve of their centres: particles
+/// near each other in space come near each other in the body order, and so do their nodes
+/// and faces in every array the engine keeps. The contact passes read the faces and nodes
+/// of each node's neighbours; numbered at random (placement order) those lie anywhere in
+/// memory (docs/PERFORMANCE.md, "Numbering the particles along a space-filling curve").
+fn number_in_space(placed: Vec<PlacedParticle>) -> Vec<PlacedParticle> {
+    let mut numbered = Vec::with_capacity(placed.len());
+    let mut start = 0;
+    while start < placed.len() {
+        let d = placed[start].diameter;
+        let end = start
+            + placed[start..]
+                .iter()
+                .take_while(|p| p.diameter == d)
+                .count();
+        let group = &placed[start..end];
+        let centres: Vec<[f64; 3]> = group.iter().map(|p| p.center).collect();
+        numbered.extend(morton_order(&centres).into_iter().map(|i| group[i].clone()));
+        start = end;
+    }
+    numbered
 }
 
 /// Where the centre of a sphere may lie: within `radial` of the axis, between `z0` and `z1`.

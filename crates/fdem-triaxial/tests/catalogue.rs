@@ -419,8 +419,14 @@ fn assert_valid_placement(spec: &SpecimenSpec, loose: f64) {
         let norm: f64 = p.orientation.iter().map(|q| q * q).sum();
         assert!((norm - 1.0).abs() < 1e-14);
     }
-    // Largest first.
+    // Largest first, and each diameter's particles along the Morton curve of their
+    // centres (neighbours in space near each other in the body order).
     assert!(placed.windows(2).all(|w| w[0].diameter >= w[1].diameter));
+    for group in placed.chunk_by(|a, b| a.diameter == b.diameter) {
+        let centres: Vec<[f64; 3]> = group.iter().map(|p| p.center).collect();
+        let codes = fdem_core::space_order::morton_codes(&centres);
+        assert!(codes.is_sorted(), "{}: not in space order", spec.name);
+    }
     // Mass per class within one particle's mass of its share (density cancels).
     let solid = spec.requested_solid_fraction().unwrap() * spec.inner_volume();
     for (i, k) in c.classes.iter().enumerate() {
