@@ -77,10 +77,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if b < n {
             h.0 = old_to_new[b] * per + i;
         }
-        if let Counterpart::Body(c) = h.1 {
-            if (c as usize) < n {
-                h.1 = Counterpart::Body(old_to_new[c as usize] as u32);
-            }
+        if let Counterpart::Body(c) = h.1
+            && (c as usize) < n
+        {
+            h.1 = Counterpart::Body(old_to_new[c as usize] as u32);
         }
     }
     p.state.history.sort_by_key(|h| (h.0, h.1.code()));
