@@ -247,18 +247,9 @@ pub fn place_spheres(
 /// memory (docs/PERFORMANCE.md, "Numbering the particles along a space-filling curve").
 fn number_in_space(placed: Vec<PlacedParticle>) -> Vec<PlacedParticle> {
     let mut numbered = Vec::with_capacity(placed.len());
-    let mut start = 0;
-    while start < placed.len() {
-        let d = placed[start].diameter;
-        let end = start
-            + placed[start..]
-                .iter()
-                .take_while(|p| p.diameter == d)
-                .count();
-        let group = &placed[start..end];
+    for group in placed.chunk_by(|a, b| a.diameter == b.diameter) {
         let centres: Vec<[f64; 3]> = group.iter().map(|p| p.center).collect();
         numbered.extend(morton_order(&centres).into_iter().map(|i| group[i].clone()));
-        start = end;
     }
     numbered
 }
