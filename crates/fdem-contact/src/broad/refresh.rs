@@ -147,6 +147,48 @@ impl LocalGrid {
     fn is_empty(&self) -> bool {
         self.items.is_empty()
     }
+
+    /// Whether box `bx` overlaps a cell that holds an item.
+    fn holds_items_within(&self, bx: &[f64; 6]) -> bool {
+        if self.frame.is_none() {
+            return false;
+        }
+        let (lo, hi) = self.range(bx);
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                let row = self.dims[0] * (j + self.dims[1] * k);
+                for i in lo[0]..=hi[0] {
+                    let c = (i + row) as usize;
+                    if self.start[c] != self.start[c + 1] {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// Per body, whether its box (`boxes`) overlaps a cell that holds an item: the bodies
+    /// whose faces or nodes can meet the items at all.
+    fn near_bodies(&self, boxes: &[[f64; 6]]) -> Vec<bool> {
+        boxes.iter().map(|bx| self.holds_items_within(bx)).collect()
+    }
+}
+
+/// Per body, the box of its surface nodes at `positions`; it holds every face of the body,
+/// whose corners are surface nodes of the body (`ContactSurface::validate`). A body without
+/// surface nodes gets an empty box (lower corner above the upper).
+fn body_boxes(positions: &[[f64; 3]], surface: &ContactSurface, n_bodies: usize) -> Vec<[f64; 6]> {
+    let (inf, neg) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut boxes = vec![[inf, inf, inf, neg, neg, neg]; n_bodies];
+    for (&g, &body) in surface.surface_nodes.iter().zip(&surface.node_body) {
+        let (x, bx) = (positions[g], &mut boxes[body as usize]);
+        for d in 0..3 {
+            bx[d] = bx[d].min(x[d]);
+            bx[d + 3] = bx[d + 3].max(x[d]);
+        }
+    }
+    boxes
 }
 
 /// Calls `f` with the index of every cell from `lo` to `hi` (inclusive; empty when a
@@ -290,9 +332,28 @@ impl BroadPhase {
         let (Some(node_grid), Some(face_grid)) = (node_grid, face_grid) else {
             return false;
         };
-        let mut found = faces_of_dirty_nodes(positions, surface, &node_grid, reach, &two_sided);
+        // Only the bodies whose box overlaps an occupied cell of a grid can pair with its
+        // items: the scans below skip every other body's faces or nodes, which the grid
+        // would give nothing (the same pairs, in the same order).
+        let boxes = body_boxes(positions, surface, dirty.len());
+        let near_nodes = node_grid.near_bodies(&boxes);
+        let mut found = faces_of_dirty_nodes(
+            positions,
+            surface,
+            &node_grid,
+            &near_nodes,
+            reach,
+            &two_sided,
+        );
+        let near_faces = face_grid.near_bodies(&boxes);
         found.extend(nodes_of_dirty_faces(
-            positions, surface, dirty, &face_grid, reach, &two_sided,
+            positions,
+            surface,
+            dirty,
+            &face_grid,
+            &near_faces,
+            reach,
+            &two_sided,
         ));
         self.merge_refreshed(surface, dirty, found);
         for &k in &dirty_nodes {
@@ -306,11 +367,13 @@ impl BroadPhase {
 }
 
 /// The pairs of the dirty nodes (binned in `grid`) with every face of another body, one
-/// list per fixed chunk of triangles (a pair may be listed twice).
+/// list per fixed chunk of triangles (a pair may be listed twice); the faces of a body not
+/// `near` the grid's nodes are skipped.
 fn faces_of_dirty_nodes(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
     grid: &LocalGrid,
+    near: &[bool],
     reach: RefreshReach,
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
@@ -327,8 +390,11 @@ fn faces_of_dirty_nodes(
             let first = chunk * TRIANGLE_CHUNK;
             let last = (first + TRIANGLE_CHUNK).min(surface.triangles.len());
             for t in first..last {
-                let ids = surface.triangles[t];
                 let owner = surface.triangle_body[t];
+                if !near[owner as usize] {
+                    continue;
+                }
+                let ids = surface.triangles[t];
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
                 let sided = two_sided(owner);
@@ -348,12 +414,14 @@ fn faces_of_dirty_nodes(
 }
 
 /// The pairs of every node of a clean body with the faces of the dirty bodies (binned in
-/// `grid`), one list per fixed chunk of surface nodes.
+/// `grid`), one list per fixed chunk of surface nodes; the nodes of a body not `near` the
+/// grid's faces are skipped.
 fn nodes_of_dirty_faces(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
     dirty: &[bool],
     grid: &LocalGrid,
+    near: &[bool],
     reach: RefreshReach,
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
@@ -369,7 +437,7 @@ fn nodes_of_dirty_faces(
             let mut pairs = Vec::new();
             for k in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
                 let body = surface.node_body[k];
-                if dirty[body as usize] {
+                if dirty[body as usize] || !near[body as usize] {
                     continue;
                 }
                 let x = positions[surface.surface_nodes[k]];
