@@ -1499,7 +1499,9 @@ impl ContactModel {
     }
 
     /// Adds the chunks' contact forces and the reactions on faces and walls to `forces`,
-    /// keeps the contacts as the next evaluation's history, and sums the report.
+    /// keeps the contacts as the next evaluation's history, and sums the report. The
+    /// history's copy runs beside the serial addition of the forces (it reads the same
+    /// records and writes nothing the addition reads).
     fn apply_forces(&mut self, forces: &mut [[f64; 3]], renewal: Renewal) -> ContactReport {
         let mut report = ContactReport {
             rebuilt: renewal == Renewal::Full,
@@ -1510,37 +1512,25 @@ impl ContactModel {
             candidate_pairs: self.broad.pairs,
             ..ContactReport::default()
         };
-        for f in &mut self.wall_forces {
-            *f = [0.0; 3];
-        }
-        self.contacts.clear();
-        for scratch in &self.chunks {
-            let contacts = &scratch.contacts;
-            for (i, c) in contacts.iter().enumerate() {
-                prefetch_spread(&self.surface.triangles, forces, contacts, i);
-                let f = c.force();
-                let node = &mut forces[c.node];
-                *node = add(*node, f);
-                match (c.face, c.counterpart) {
-                    (Some(t), _) => {
-                        // Reaction on the face, spread by the barycentric weights of the
-                        // contact point: momentum is conserved to round-off.
-                        let tri = self.surface.triangles[t];
-                        for (i, &w) in tri.iter().zip(&c.weights) {
-                            forces[*i] = sub(forces[*i], scale(f, w));
-                        }
-                    }
-                    (None, Counterpart::Wall(w)) => {
-                        let w = w as usize;
-                        self.wall_forces[w] = sub(self.wall_forces[w], f);
-                        report.wall_contacts += 1;
-                    }
-                    (None, Counterpart::Body(_)) => {}
-                }
-                report.sliding += usize::from(c.sliding);
-                self.contacts.push(*c);
+        let (chunks, history) = (&self.chunks, &mut self.contacts);
+        let (triangles, wall_forces) = (&self.surface.triangles, &mut self.wall_forces);
+        let mut spread = || spread_forces(chunks, triangles, forces, wall_forces);
+        let mut keep = || {
+            history.clear();
+            for scratch in chunks {
+                history.extend_from_slice(&scratch.contacts);
             }
-            let s = &scratch.sums;
+        };
+        let n: usize = chunks.iter().map(|scratch| scratch.contacts.len()).sum();
+        let (wall_contacts, sliding) = if n >= PARALLEL_HISTORY_MIN {
+            rayon::join(spread, keep).0
+        } else {
+            keep();
+            spread()
+        };
+        report.wall_contacts = wall_contacts;
+        report.sliding = sliding;
+        for s in self.chunks.iter().map(|scratch| &scratch.sums) {
             report.stored_energy += s.stored;
             report.normal_damping_power += s.normal_damping;
             report.tangential_damping_power += s.tangential_damping;
@@ -1563,6 +1553,47 @@ impl ContactModel {
     pub fn surface_node_mass(&self, k: usize) -> Option<f64> {
         self.masses.get(k).copied()
     }
+}
+
+/// Contacts from which [`ContactModel::add_evaluated_forces`] copies the history on a second
+/// thread while it adds the forces: below, the copy is shorter than waking a thread.
+const PARALLEL_HISTORY_MIN: usize = 1 << 12;
+
+/// Adds the forces of the chunks' contacts, in order, to their nodes, the reactions to the
+/// faces' nodes (spread by the barycentric weights of the contact point: momentum is
+/// conserved to round-off) and to `wall_forces` (zeroed first); returns the numbers of
+/// wall contacts and of sliding contacts.
+fn spread_forces(
+    chunks: &[ChunkScratch],
+    triangles: &[[usize; 3]],
+    forces: &mut [[f64; 3]],
+    wall_forces: &mut [[f64; 3]],
+) -> (usize, usize) {
+    wall_forces.fill([0.0; 3]);
+    let (mut wall_contacts, mut sliding) = (0, 0);
+    for contacts in chunks.iter().map(|scratch| &scratch.contacts) {
+        for (i, c) in contacts.iter().enumerate() {
+            prefetch_spread(triangles, forces, contacts, i);
+            let f = c.force();
+            let node = &mut forces[c.node];
+            *node = add(*node, f);
+            match (c.face, c.counterpart) {
+                (Some(t), _) => {
+                    for (j, &w) in triangles[t].iter().zip(&c.weights) {
+                        forces[*j] = sub(forces[*j], scale(f, w));
+                    }
+                }
+                (None, Counterpart::Wall(w)) => {
+                    let w = w as usize;
+                    wall_forces[w] = sub(wall_forces[w], f);
+                    wall_contacts += 1;
+                }
+                (None, Counterpart::Body(_)) => {}
+            }
+            sliding += usize::from(c.sliding);
+        }
+    }
+    (wall_contacts, sliding)
 }
 
 /// How many contacts ahead the serial spread asks for the forces it will add into; the
