@@ -130,6 +130,19 @@ pub enum ContactError {
         range: &'static str,
     },
 
+    /// A mean motion ([`crate::ContactModel::set_mean_motion`]) with a value that is not
+    /// finite.
+    #[error(
+        "mean motion's {what} is not finite ({value}); give finite numbers (the origin in m, \
+         the rate in 1/s, the time in s)"
+    )]
+    InvalidMeanMotion {
+        /// `"origin"`, `"rate"` or `"time"`.
+        what: &'static str,
+        /// The values given, as text.
+        value: String,
+    },
+
     /// The Verlet-skin margin is not finite and positive.
     #[error(
         "contact margin {} m is not finite and > 0; use for example \

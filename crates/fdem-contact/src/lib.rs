@@ -122,6 +122,7 @@ mod detect;
 mod error;
 pub mod events;
 mod law;
+mod mean_motion;
 mod model;
 pub mod narrow;
 mod params;

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::broad::{BroadPhase, CHUNK};
 use crate::detect::{ChunkScratch, Ctx};
 use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
+use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion, drift2};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::prefetch::prefetch;
@@ -58,6 +59,15 @@ impl Default for RefreshPolicy {
             max_refreshed_fraction: 0.5,
         }
     }
+}
+
+/// The scan's largest drift of one evaluation (squared, m^2), from the positions the mean
+/// motion expects (`expected`, at the evaluation's `time`).
+#[derive(Clone, Copy, Debug)]
+struct Drift {
+    max2: f64,
+    expected: Option<Expected>,
+    time: f64,
 }
 
 /// What [`ContactModel::add_forces`] did to the broad phase in one evaluation.
@@ -437,6 +447,12 @@ pub struct ContactModel {
     /// An evaluation whose forces wait for [`ContactModel::add_evaluated_forces`], with
     /// what it did to the broad phase.
     evaluated: Option<Renewal>,
+    /// The mean motion the broad phase measures drift from (`set_mean_motion`).
+    mean: Option<MeanMotion>,
+    /// The mean motion's gradient at the last full build.
+    build_gradient: Matrix,
+    /// The largest distortion `|A - I|` of the mean motion since the last full build.
+    largest_distortion: f64,
 }
 
 /// The lightest surface node of each body, then the two lightest bodies: a node's
@@ -621,6 +637,9 @@ impl ContactModel {
             jumps: None,
             evaluations: 0,
             evaluated: None,
+            mean: None,
+            build_gradient: IDENTITY,
+            largest_distortion: 0.0,
         })
     }
 
@@ -908,6 +927,82 @@ impl ContactModel {
         Ok(())
     }
 
+    /// Declares the mean motion the surface follows from `time` on: a uniform deformation
+    /// about the fixed point `origin` (m) whose gradient changes at `rate` (1/s, rows),
+    /// `F(t) = (I + (t - time) rate) F(time)`, continuing the motion set before. A specimen
+    /// squeezed between platens at speed `v` over height `H` has `rate[2][2] = -v / H`
+    /// about a point of the fixed platen.
+    ///
+    /// The broad phase then measures each node's drift from where the mean motion has
+    /// taken it since its pairs were found, not from rest (`crate::mean_motion` has the
+    /// argument), so the lists last while neighbours keep their arrangement. The contacts
+    /// and forces are the same under any mean motion, or none: only the renewals change.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidMeanMotion`] for a value that is not finite; nothing is
+    /// changed then.
+    pub fn set_mean_motion(
+        &mut self,
+        origin: [f64; 3],
+        rate: [[f64; 3]; 3],
+        time: f64,
+    ) -> Result<(), ContactError> {
+        let bad = |what, value: String| Err(ContactError::InvalidMeanMotion { what, value });
+        if !is_finite(origin) {
+            return bad("origin", format!("{origin:?}"));
+        }
+        if !rate.iter().all(|&row| is_finite(row)) {
+            return bad("rate", format!("{rate:?}"));
+        }
+        if !time.is_finite() {
+            return bad("time", format!("{time}"));
+        }
+        self.mean = Some(MeanMotion::continued(
+            self.mean.as_ref(),
+            origin,
+            rate,
+            time,
+        ));
+        Ok(())
+    }
+
+    /// Drift is measured from rest again (the default).
+    pub fn clear_mean_motion(&mut self) {
+        self.mean = None;
+        self.rebuild_requested = true;
+    }
+
+    /// Where the mean motion has taken the last full build's reference positions at
+    /// `time` (`None` without mean motion or before a build), recording its distortion;
+    /// a map that cannot be inverted asks for a full build.
+    fn expected_motion(&mut self, time: f64) -> Option<Expected> {
+        let mean = self.mean.as_ref()?;
+        if !self.broad.built {
+            return None;
+        }
+        match mean.since(&self.build_gradient, time) {
+            Some(e) => {
+                self.largest_distortion = self.largest_distortion.max(e.distortion);
+                Some(e)
+            }
+            None => {
+                self.rebuild_requested = true;
+                None
+            }
+        }
+    }
+
+    /// How far a node may drift from its expected position before the lists are renewed:
+    /// half the margin, less the mean motion's distortion of the lists' reach.
+    fn drift_allowance(&self) -> DriftAllowance {
+        let (e, front) = self.broad.refresh_reaches(self.margin);
+        DriftAllowance::of(
+            TUNNELLING_FRACTION * self.margin,
+            self.largest_distortion,
+            e + front,
+        )
+    }
+
     /// Forces the next evaluation to rebuild the broad phase (for example after nodes were
     /// moved by something other than time stepping).
     pub fn request_rebuild(&mut self) {
@@ -1043,8 +1138,14 @@ impl ContactModel {
         Ok(())
     }
 
-    /// Scans the surface nodes: finiteness, drift since the last build, largest speed.
-    fn scan(&self, positions: &[[f64; 3]], velocities: &[[f64; 3]]) -> Scan {
+    /// Scans the surface nodes: finiteness, drift since the last build (from the expected
+    /// positions under a mean motion), largest speed.
+    fn scan(
+        &self,
+        positions: &[[f64; 3]],
+        velocities: &[[f64; 3]],
+        expected: Option<&Expected>,
+    ) -> Scan {
         let nodes = &self.surface.surface_nodes;
         let reference = if self.broad.built {
             Some(&self.broad.reference)
@@ -1073,7 +1174,7 @@ impl ContactModel {
                         }
                     }
                     if let Some(r) = reference {
-                        s.max_drift2 = s.max_drift2.max(norm2(sub(x, r[k])));
+                        s.max_drift2 = s.max_drift2.max(drift2(expected, x, r[k]));
                     }
                     let v2 = norm2(v);
                     if v2 > s.max_speed2 {
@@ -1147,9 +1248,10 @@ impl ContactModel {
         // the depth limit grows it, within its cap); beside it, the planes of the faces
         // the candidate lists name (they depend on the positions alone; a renewal of the
         // lists below computes those of the new lists).
+        let expected = self.expected_motion(time);
         let mut planes = std::mem::take(&mut self.planes);
         let (scan, ()) = rayon::join(
-            || self.scan(positions, velocities),
+            || self.scan(positions, velocities, expected.as_ref()),
             || {
                 face_planes(
                     &mut planes,
@@ -1171,7 +1273,12 @@ impl ContactModel {
             }
             result => result?,
         };
-        let mut renewal = self.renew_if_due(positions, scan.max_drift2);
+        let drift = Drift {
+            max2: scan.max_drift2,
+            expected,
+            time,
+        };
+        let mut renewal = self.renew_if_due(positions, drift);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
         // contact too deep for the depth limit, or a node moving too far relative to a
@@ -1183,7 +1290,7 @@ impl ContactModel {
                 Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
-                    match self.renew_if_due(positions, scan.max_drift2) {
+                    match self.renew_if_due(positions, drift) {
                         Renewal::None => {}
                         again => renewal = again,
                     }
@@ -1382,8 +1489,8 @@ impl ContactModel {
 
     /// [`ContactModel::rebuild_if_due`], then, when the lists were renewed, the planes of
     /// the faces they name now (a face new to the lists has no plane of this step yet).
-    fn renew_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> Renewal {
-        let renewal = self.rebuild_if_due(positions, max_drift2);
+    fn renew_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
+        let renewal = self.rebuild_if_due(positions, drift);
         if renewal != Renewal::None {
             face_planes(
                 &mut self.planes,
@@ -1395,14 +1502,16 @@ impl ContactModel {
         renewal
     }
 
-    /// Rebuilds the broad phase when asked to, before the first evaluation, or when a
-    /// surface node has drifted farther than half the margin (`max_drift2` is the square
-    /// of the largest drift); in the last case only the bodies that drifted are refreshed
-    /// when the [`RefreshPolicy`] allows. Returns what it did.
-    fn rebuild_if_due(&mut self, positions: &[[f64; 3]], max_drift2: f64) -> Renewal {
-        let half = TUNNELLING_FRACTION * self.margin;
-        let full = self.rebuild_requested || !self.broad.built;
-        if !full && max_drift2 <= half * half {
+    /// Rebuilds the broad phase when asked to, before the first evaluation, when the mean
+    /// motion's distortion has used up the allowance, or when a surface node has drifted
+    /// farther than the allowance (half the margin without mean motion); in the last case
+    /// only the bodies that drifted are refreshed when the [`RefreshPolicy`] allows.
+    /// Returns what it did.
+    fn rebuild_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
+        let allowance = self.drift_allowance();
+        let half = allowance.drift;
+        let full = self.rebuild_requested || !self.broad.built || allowance.exhausted;
+        if !full && drift.max2 <= half * half {
             return Renewal::None;
         }
         let sheets = &self.sheets;
@@ -1411,18 +1520,23 @@ impl ContactModel {
             // deforming as a whole most bodies are, and one full build serves them all.
             let policy = self.refresh_policy;
             let near = policy.near * half;
-            let (dirty, nodes) = self.broad.drifted_bodies(positions, &self.surface, near);
+            let expected = drift.expected.as_ref();
+            let (dirty, nodes) =
+                self.broad
+                    .drifted_bodies(positions, &self.surface, near, expected);
             let total = self.surface.surface_nodes.len() as f64;
             let refreshed = (self.broad.refreshed_nodes() + nodes) as f64;
             if nodes as f64 <= policy.max_fraction * total
                 && refreshed <= policy.max_refreshed_fraction * total
             {
                 let bodies = dirty.iter().filter(|&&d| d).count();
-                let refreshed =
-                    self.broad
-                        .refresh(positions, &self.surface, &dirty, self.margin, |body| {
-                            sheets.is_sheet(body)
-                        });
+                let refreshed = self.broad.refresh(
+                    positions,
+                    &self.surface,
+                    (dirty.as_slice(), expected),
+                    self.margin,
+                    |body| sheets.is_sheet(body),
+                );
                 if refreshed {
                     return Renewal::Refresh { bodies };
                 }
@@ -1436,6 +1550,11 @@ impl ContactModel {
             |body| sheets.is_sheet(body),
         );
         self.rebuild_requested = false;
+        self.build_gradient = self
+            .mean
+            .as_ref()
+            .map_or(IDENTITY, |m| m.gradient_at(drift.time));
+        self.largest_distortion = 0.0;
         Renewal::Full
     }
 

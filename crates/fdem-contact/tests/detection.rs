@@ -212,6 +212,212 @@ proptest! {
     }
 }
 
+fn evaluate_at(model: &mut ContactModel, x: &[[f64; 3]], t: f64) -> fdem_contact::ContactReport {
+    let n = x.len();
+    let mut f = vec![[0.0; 3]; n];
+    model
+        .add_forces(x, &vec![[0.0; 3]; n], t, 1e-7, &mut f)
+        .unwrap()
+}
+
+/// `origin + (I + t rate) (x - origin)`.
+fn mapped(origin: [f64; 3], rate: [[f64; 3]; 3], t: f64, x: [f64; 3]) -> [f64; 3] {
+    let d = sub(x, origin);
+    std::array::from_fn(|i| origin[i] + d[i] + t * dot(rate[i], d))
+}
+
+/// The drift allowance of `fdem_contact::mean_motion`, written out here: half the margin
+/// less `2 g / (1 - g)` times the refresh's reaches, `g = |t rate|` (Frobenius).
+fn allowance(model: &ContactModel, rate: [[f64; 3]; 3], t: f64) -> f64 {
+    let g = t * rate.iter().flatten().map(|r| r * r).sum::<f64>().sqrt();
+    let (e, front) = model.candidate_refresh_reaches();
+    0.5 * model.margin() - 2.0 * g / (1.0 - g) * (e + front)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn a_mean_motion_keeps_every_contact_capable_pair_listed(
+        seed in 0u64..1_000_000,
+        n in 2usize..7,
+        level in 0u32..2,
+        margin_fraction in 0.01f64..0.05,
+        depth_factor in 1.5f64..3.0,
+        distortion in 0.002f64..0.006,
+    ) {
+        // A cluster deformed by a uniform map (a random gradient rate, a few per mille)
+        // moves its nodes by several margins, and each node drifts by up to the allowance
+        // beyond it: the lists are kept and hold every pair that can be in contact.
+        let d = 0.01;
+        let margin = margin_fraction * d;
+        let assembly = scene(seed, n, level, d, margin..1.9 * margin);
+        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, Some(margin));
+        model.set_depth_limit(depth_factor * margin).unwrap();
+        let mut r = rng(seed ^ 0xa11);
+        let mut rate = [[0.0; 3]; 3];
+        for row in &mut rate {
+            for v in row.iter_mut() {
+                *v = r.random_range(-1.0..1.0);
+            }
+        }
+        let norm = rate.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+        let t = distortion / norm;
+        let x0 = assembly.nodes.clone();
+        // The fixed point 0.1 m off the cluster: the map moves every node by much more
+        // than its allowance.
+        let corner = x0.iter().fold([f64::INFINITY; 3], |o, p| std::array::from_fn(|i| o[i].min(p[i])));
+        let origin = corner.map(|c| c - 0.1);
+        model.set_mean_motion(origin, rate, 0.0).unwrap();
+        prop_assert!(evaluate_at(&mut model, &x0, 0.0).rebuilt);
+        let got: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
+        let rho = allowance(&model, rate, t);
+        prop_assume!(rho > 0.25 * margin);
+        let x1: Vec<[f64; 3]> = x0
+            .iter()
+            .map(|&p| {
+                let u = common::random_unit(&mut r);
+                add(mapped(origin, rate, t, p), scale(u, r.random_range(0.0..0.98) * rho))
+            })
+            .collect();
+        let report = evaluate_at(&mut model, &x1, t);
+        prop_assert!(!report.rebuilt && report.refreshed_bodies == 0);
+        prop_assert!(contact_capable(&assembly, &x1, model.depth_limit()).is_subset(&got));
+
+        // One body drifts past the allowance: only it is refreshed, the lists still hold
+        // every contact-capable pair, and its new reference is where the mean motion
+        // expects it, so the same positions renew nothing again.
+        model.set_refresh_policy(RefreshPolicy {
+            near: 1.0,
+            max_fraction: 1.0,
+            max_refreshed_fraction: 1.0,
+        }).unwrap();
+        let mover = seed as usize % assembly.n_bodies();
+        let shift = scale(common::random_unit(&mut r), 1.1 * rho);
+        let mut x2 = x1.clone();
+        for i in assembly.bodies[mover].nodes.clone() {
+            x2[i] = add(mapped(origin, rate, t, x0[i]), shift);
+        }
+        let report = evaluate_at(&mut model, &x2, t);
+        prop_assert!(!report.rebuilt);
+        prop_assert_eq!(report.refreshed_bodies, 1);
+        let set2: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
+        prop_assert!(contact_capable(&assembly, &x2, model.depth_limit()).is_subset(&set2));
+        let again = evaluate_at(&mut model, &x2, t);
+        prop_assert!(!again.rebuilt && again.refreshed_bodies == 0);
+    }
+}
+
+/// Eight spheres in contact squeezed along z at a constant rate (3 % over 300 steps: the
+/// far nodes move about nine margins, neighbours approach by up to three) with the
+/// oscillations of `oscillating` on top (`rattle` for one sphere, `wobble` for the
+/// others). Three models: one told the squeeze, one not, one rebuilding at every
+/// evaluation; forces, contacts and energies must agree bit for bit. Returns the renewals
+/// (full builds plus refreshes) of the told and the untold model and the most contacts.
+fn squeezed(rattle: f64, wobble: f64) -> (usize, usize, usize) {
+    let margin = 1e-4;
+    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let mut told = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    let mut untold = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    let mut rebuilding = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    for m in [&mut told, &mut untold, &mut rebuilding] {
+        m.set_depth_limit(10.0 * margin).unwrap();
+        // A rattler (an eighth of the nodes) is refreshed alone.
+        m.set_refresh_policy(RefreshPolicy {
+            max_fraction: 0.2,
+            ..RefreshPolicy::default()
+        })
+        .unwrap();
+    }
+    let (steps, dt) = (300, 1e-7);
+    let origin = assembly.nodes.iter().fold([f64::INFINITY; 3], |o, p| {
+        std::array::from_fn(|i| o[i].min(p[i]))
+    });
+    let mut rate = [[0.0; 3]; 3];
+    rate[2][2] = -0.03 / (steps as f64 * dt);
+    told.set_mean_motion(origin, rate, 0.0).unwrap();
+    let positions = oscillating(&assembly, 5, rattle * margin, wobble * margin);
+    let n = assembly.n_nodes();
+    let v = vec![[0.0; 3]; n];
+    let mut contacts = 0;
+    for step in 0..steps {
+        let t = step as f64 * dt;
+        let x: Vec<[f64; 3]> = positions(step)
+            .iter()
+            .map(|&p| mapped(origin, rate, t, p))
+            .collect();
+        let mut f = [vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]];
+        rebuilding.request_rebuild();
+        let a = told.add_forces(&x, &v, t, dt, &mut f[0]).unwrap();
+        let b = untold.add_forces(&x, &v, t, dt, &mut f[1]).unwrap();
+        let c = rebuilding.add_forces(&x, &v, t, dt, &mut f[2]).unwrap();
+        assert_eq!(f[0], f[2], "step {step}");
+        assert_eq!(f[1], f[2], "step {step}");
+        for r in [&a, &b] {
+            assert_eq!(r.contacts, c.contacts, "step {step}");
+            assert_eq!(r.stored_energy.to_bits(), c.stored_energy.to_bits());
+        }
+        contacts = contacts.max(a.contacts);
+    }
+    eprintln!(
+        "rattle {rattle}, wobble {wobble}: told {} builds, {} refreshes; untold {} builds, \
+         {} refreshes; up to {contacts} contacts",
+        told.rebuild_count(),
+        told.refresh_count(),
+        untold.rebuild_count(),
+        untold.refresh_count()
+    );
+    let renewals = |m: &ContactModel| m.rebuild_count() + m.refresh_count();
+    (renewals(&told), renewals(&untold), contacts)
+}
+
+#[test]
+fn a_mean_motion_gives_the_forces_of_full_builds_bit_for_bit() {
+    // With a rattler and contacts that open and close; the rattler's refreshes dominate
+    // the renewals of both models.
+    let (told, untold, contacts) = squeezed(1.0, 0.12);
+    assert!(contacts >= 5, "{contacts} contacts");
+    assert!(
+        told <= untold,
+        "told {told} against untold {untold} renewals"
+    );
+}
+
+#[test]
+fn a_mean_motion_spares_the_renewals_of_a_squeeze() {
+    // Without a rattler the squeeze alone renews the untold model's lists; the told one
+    // renews them when its distortion has used up the allowance (every percent or so).
+    let (told, untold, _) = squeezed(0.05, 0.05);
+    assert!(
+        3 * told <= untold,
+        "told {told} against untold {untold} renewals"
+    );
+}
+
+#[test]
+fn a_mean_motion_that_is_not_finite_is_refused() {
+    let assembly = scene(5, 2, 0, 0.01, 1e-4..2e-4);
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(2e-4),
+    );
+    let mut rate = [[0.0; 3]; 3];
+    rate[1][2] = f64::NAN;
+    let e = model.set_mean_motion([0.0; 3], rate, 0.0).unwrap_err();
+    assert!(e.to_string().contains("mean motion's rate"), "{e}");
+    let e = model
+        .set_mean_motion([f64::INFINITY, 0.0, 0.0], [[0.0; 3]; 3], 0.0)
+        .unwrap_err();
+    assert!(e.to_string().contains("origin"), "{e}");
+}
+
 #[test]
 fn a_refresh_policy_out_of_range_is_refused() {
     let assembly = scene(5, 3, 1, 0.01, 1e-3..2e-3);

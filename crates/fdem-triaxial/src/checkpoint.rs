@@ -244,6 +244,7 @@ impl crate::TestModel {
             .restore_checkpoint(&c.sim)
             .map_err(|e| TriaxialError::file(path, e.to_string()))?;
         model.set_pressure(c.pressure);
+        model.follow_platens()?;
         Ok(model)
     }
 }

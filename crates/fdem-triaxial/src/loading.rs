@@ -670,7 +670,29 @@ impl TestModel {
             nodes.positions[i][2] = z;
             nodes.velocities[i] = [0.0, 0.0, velocity];
         }
-        Ok(())
+        self.follow_platens()
+    }
+
+    /// Tells the contact model the specimen's mean motion, the axial squeeze the top
+    /// platen imposes at its present velocity about the fixed bottom platen, so that its
+    /// broad phase measures the nodes' drift from that motion
+    /// (`fdem_contact::ContactModel::set_mean_motion`; the contacts do not depend on it).
+    /// Called whenever the platen's velocity is set and after a restored state.
+    pub(crate) fn follow_platens(&mut self) -> Result<(), TriaxialError> {
+        let time = self.sim.time();
+        let (bottom, height) = (self.platen_z(TEST_WALL_BOTTOM), self.height());
+        let Some(c) = self.sim.contact_mut() else {
+            return Ok(());
+        };
+        let velocity = c.model().walls()[TEST_WALL_TOP.0].velocity[2];
+        let mut rate = [[0.0; 3]; 3];
+        rate[2][2] = velocity / height;
+        c.model_mut()
+            .set_mean_motion([0.0, 0.0, bottom], rate, time)
+            .map_err(|e| TriaxialError::Test {
+                phase: "servo",
+                message: e.to_string(),
+            })
     }
 
     /// Particles whose centre of mass is outside the closed surface of membrane and platens.

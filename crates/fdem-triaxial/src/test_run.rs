@@ -557,6 +557,7 @@ impl Run<'_> {
             .restore_checkpoint(&c.sim)
             .map_err(|e| bad(e.to_string()))?;
         self.model.set_pressure(c.pressure);
+        self.model.follow_platens()?;
         let [checks, discarded, most, depth] = c.outputs;
         self.escape_checks = checks as u64;
         self.discarded = (discarded as u64, most as u64);

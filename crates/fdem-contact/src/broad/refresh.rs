@@ -20,6 +20,11 @@
 //! extra half skin adds ([`BroadPhase::refresh`]). When either end is refreshed again,
 //! the pair is found anew.
 //!
+//! Under a mean motion (`crate::mean_motion`) "drifted" means from where the mean motion
+//! has taken a node's reference, the references are kept in the full build's
+//! configuration, and the allowance is half a skin less the mean motion's distortion of
+//! the reaches; the argument is the same in the frame the mean motion carries along.
+//!
 //! The lists stay sorted by (owner body, triangle) per node, and the narrow phase only
 //! acts on faces within the depth limit of a node (every other candidate is skipped by an
 //! exact test), so a list with more candidates than a full build would give yields the
@@ -31,6 +36,7 @@ use super::{
     BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, in_box, is_candidate,
 };
 use crate::ContactSurface;
+use crate::mean_motion::{Expected, drift2};
 
 /// Items (surface nodes or triangles) binned by the cells their boxes overlap, on a dense
 /// grid of a fixed cell size over the boxes' union.
@@ -243,13 +249,15 @@ impl RefreshReach {
 }
 
 impl BroadPhase {
-    /// Per body, whether one of its surface nodes lies farther than `half` from its
-    /// reference position; and how many surface nodes those bodies have.
+    /// Per body, whether one of its surface nodes lies farther than `half` from where its
+    /// reference position is expected (the reference itself without mean motion); and how
+    /// many surface nodes those bodies have.
     pub(crate) fn drifted_bodies(
         &self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
         half: f64,
+        expected: Option<&Expected>,
     ) -> (Vec<bool>, usize) {
         let n_bodies = surface
             .node_body
@@ -265,8 +273,7 @@ impl BroadPhase {
             .zip(&surface.node_body)
             .enumerate()
         {
-            let [dx, dy, dz] = std::array::from_fn(|d| positions[g][d] - self.reference[k][d]);
-            if dx * dx + dy * dy + dz * dz > half * half {
+            if drift2(expected, positions[g], self.reference[k]) > half * half {
                 dirty[body as usize] = true;
             }
         }
@@ -292,14 +299,16 @@ impl BroadPhase {
 
     /// Replaces every candidate pair with a node or a face on a body marked in `dirty` by
     /// the pairs at the current positions (the refresh reaches, [`RefreshReach`]) and
-    /// resets those bodies' reference positions; every other pair is kept. `dirty` has an
-    /// entry per body; a full build must have come first. Returns `false`, changing
-    /// nothing, when a box is too large to bin ([`MAX_CELLS_PER_BOX`]).
+    /// resets those bodies' reference positions (to the full build's configuration under
+    /// the mean motion's map `expected`, so that they are expected where they are now);
+    /// every other pair is kept. `dirty` has an entry per body; a full build must have
+    /// come first. Returns `false`, changing nothing, when a box is too large to bin
+    /// ([`MAX_CELLS_PER_BOX`]).
     pub(crate) fn refresh(
         &mut self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
-        dirty: &[bool],
+        (dirty, expected): (&[bool], Option<&Expected>),
         skin: f64,
         two_sided: impl Fn(u32) -> bool + Sync,
     ) -> bool {
@@ -357,7 +366,8 @@ impl BroadPhase {
         ));
         self.merge_refreshed(surface, dirty, found);
         for &k in &dirty_nodes {
-            self.reference[k as usize] = positions[surface.surface_nodes[k as usize]];
+            let x = positions[surface.surface_nodes[k as usize]];
+            self.reference[k as usize] = expected.map_or(x, |e| e.reference(x));
         }
         self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
         self.refreshed_nodes += dirty_nodes.len();
