@@ -174,6 +174,8 @@ pub(crate) struct BroadPhase {
     /// Per triangle, whether a candidate list may name it: every face of the lists is
     /// marked; a face whose pairs a refresh dropped stays marked until the next build.
     listed: Vec<bool>,
+    /// The faces the last refresh marked in `listed` that were not marked before it.
+    newly_listed: Vec<u32>,
     /// Enlarged triangle boxes at the last build.
     boxes: Vec<[f64; 6]>,
     layout: Layout,
@@ -617,6 +619,11 @@ impl BroadPhase {
     /// build): the faces whose planes the narrow phase reads.
     pub(crate) fn listed_faces(&self) -> &[bool] {
         &self.listed
+    }
+
+    /// The faces the last refresh added to [`BroadPhase::listed_faces`].
+    pub(crate) fn newly_listed_faces(&self) -> &[u32] {
+        &self.newly_listed
     }
 
     /// Candidate faces of surface node `k`.

@@ -1487,17 +1487,26 @@ impl ContactModel {
         Ok(v_max)
     }
 
-    /// [`ContactModel::rebuild_if_due`], then, when the lists were renewed, the planes of
-    /// the faces they name now (a face new to the lists has no plane of this step yet).
+    /// [`ContactModel::rebuild_if_due`], then the planes of the faces new to the lists (a
+    /// face new to the lists has no plane of this step yet): after a refresh those it
+    /// added, after a full build every listed face.
     fn renew_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
         let renewal = self.rebuild_if_due(positions, drift);
-        if renewal != Renewal::None {
-            face_planes(
+        let triangles = &self.surface.triangles;
+        match renewal {
+            Renewal::None => {}
+            Renewal::Refresh { .. } => {
+                for &t in self.broad.newly_listed_faces() {
+                    let t = t as usize;
+                    self.planes[t] = unit_plane(triangles[t].map(|i| positions[i]));
+                }
+            }
+            Renewal::Full => face_planes(
                 &mut self.planes,
-                &self.surface.triangles,
+                triangles,
                 positions,
                 self.broad.listed_faces(),
-            );
+            ),
         }
         renewal
     }
