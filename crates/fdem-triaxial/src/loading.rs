@@ -340,6 +340,10 @@ pub fn membrane_spec(spec: &SpecimenSpec, reach: f64) -> MembraneSpec {
         youngs_modulus: spec.membrane.youngs_modulus,
         poisson_ratio: spec.membrane.poisson_ratio,
         density: spec.membrane.density,
+        added_mass: spec
+            .membrane
+            .added_mass
+            .unwrap_or(0.5 * WATER_DENSITY * spec.inner_radius()),
     }
 }
 
@@ -415,24 +419,14 @@ fn test_contact(
     })
 }
 
-/// The membrane's mesh and body: masses plus the cell fluid's added mass on each node's
-/// area, faces towards the axis.
-fn membrane_body(spec: &SpecimenSpec, ms: &MembraneSpec, mesh: &MembraneMesh) -> SheetBody {
-    let added = spec
-        .membrane
-        .added_mass
-        .unwrap_or(0.5 * WATER_DENSITY * spec.inner_radius());
-    let areas = mesh.control_areas();
+/// The membrane's mesh and body: masses (its own and the cell fluid's added mass on each
+/// node's area), faces towards the axis.
+fn membrane_body(ms: &MembraneSpec, mesh: &MembraneMesh) -> SheetBody {
     SheetBody {
         positions: mesh.positions.clone(),
-        masses: mesh
-            .lumped_masses(ms)
-            .iter()
-            .zip(&areas)
-            .map(|(m, a)| m + added * a)
-            .collect(),
+        masses: mesh.lumped_masses(ms),
         triangles: mesh.triangles.clone(),
-        control_areas: areas,
+        control_areas: mesh.control_areas(),
     }
 }
 
@@ -490,7 +484,7 @@ impl TestModel {
         let membrane_spec = membrane_spec(spec, reach);
         let mesh = membrane_mesh(&membrane_spec).map_err(|e| setup(e.to_string()))?;
         let membrane_body = model
-            .add_sheet(membrane_body(spec, &membrane_spec, &mesh))
+            .add_sheet(membrane_body(&membrane_spec, &mesh))
             .map_err(solver_error("set-up"))?;
         let first = n_particle_nodes;
         let forces = MembraneForces::new(&mesh, &membrane_spec, first, spec.confining_pressure)

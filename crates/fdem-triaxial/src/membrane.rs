@@ -98,6 +98,10 @@ pub struct MembraneSpec {
     pub poisson_ratio: f64,
     /// Density of the rubber (kg/m^3), about 1100.
     pub density: f64,
+    /// Mass per unit area moving with the sheet besides its own (kg/m^2, >= 0): the cell
+    /// fluid's added mass. The nodes carry it ([`MembraneMesh::lumped_masses`]) and the
+    /// elements' stable step counts it.
+    pub added_mass: f64,
 }
 
 impl MembraneSpec {
@@ -113,6 +117,8 @@ impl MembraneSpec {
         for (name, value) in positive {
             check(name, value, value > 0.0, "positive and finite")?;
         }
+        let added = s.added_mass;
+        check("added_mass", added, added >= 0.0, ">= 0 and finite")?;
         if !(s.bottom.is_finite() && s.top.is_finite() && s.top > s.bottom) {
             let (bottom, top) = (s.bottom, s.top);
             return Err(MembraneError::Height { bottom, top });
@@ -121,6 +127,12 @@ impl MembraneSpec {
         check("divisions_around", n as f64, n >= 3, "at least 3")?;
         check("divisions_along", m as f64, m >= 1, "at least 1")?;
         check("poisson_ratio", nu, nu > -1.0 && nu < 0.5, "in (-1, 0.5)")
+    }
+
+    /// Mass per unit area the nodes carry, the sheet's own `rho t` plus the added mass
+    /// (kg/m^2).
+    pub fn areal_mass(&self) -> f64 {
+        self.density * self.thickness + self.added_mass
     }
 
     /// The equal-area node radius `r_n = r sqrt(2 pi / (n sin(2 pi / n)))`: the regular
@@ -218,10 +230,14 @@ impl MembraneMesh {
         out
     }
 
-    /// Lumped masses `rho t A / 3` per adjacent triangle (kg), reference areas.
+    /// Lumped masses (kg): the areal mass, `rho t` plus the added mass, times each node's
+    /// control area (a third of its triangles' reference areas).
     pub fn lumped_masses(&self, spec: &MembraneSpec) -> Vec<f64> {
-        let rt = spec.density * spec.thickness;
-        self.control_areas().into_iter().map(|a| rt * a).collect()
+        let (rt, added) = (spec.density * spec.thickness, spec.added_mass);
+        self.control_areas()
+            .into_iter()
+            .map(|a| rt * a + added * a)
+            .collect()
     }
 
     /// Whether local node `i` lies on the bottom or the top ring.
@@ -430,15 +446,17 @@ impl MembraneForces {
             // most the largest element value (the element eigenvalue theorem of Irons 1970,
             // also in Hughes, The Finite Element Method), and for an element
             // lambda_max <= trace(M_e^-1 K_e) since M_e^-1/2 K_e M_e^-1/2 is positive
-            // semi-definite. With K_e = t A0 B^T D B and m = rho t A0 / 3 per node the trace
-            // is 3 (c11 + g) / rho * sum_i |grad N_i|^2 (D11 = D22, D13 = 0). This bound is
+            // semi-definite. With K_e = t A0 B^T D B and m = mu A0 / 3 per node (mu the
+            // areal mass the nodes carry, rho t plus the added mass: each element's share of
+            // the lumped masses) the trace is 3 (c11 + g) t / mu * sum_i |grad N_i|^2 (D11 =
+            // D22, D13 = 0). This bound is
             // for the stress-free linear stiffness; the geometric stiffness of a stressed
             // sheet and the pressure load stiffness add terms of relative size |sigma|/E and
             // p h/(E t), far inside the slack of the trace (it sums three non-zero
             // eigenvalues; docs/TRIAXIAL.md, "Verification", has the bound's ratio to the
             // exact assembled step that the tests measure).
             let s: f64 = grad.iter().map(|q| q[0] * q[0] + q[1] * q[1]).sum();
-            let dt = 2.0 / (3.0 * (c11 + g) / spec.density * s).sqrt();
+            let dt = 2.0 / (3.0 * (c11 + g) * t / spec.areal_mass() * s).sqrt();
             if step.as_ref().is_none_or(|b| dt < b.dt) {
                 step = Some(StepBound {
                     dt,
@@ -865,6 +883,7 @@ mod tests {
             youngs_modulus: 1e6,
             poisson_ratio: 0.4,
             density: 1100.0,
+            added_mass: 0.0,
         }
     }
 
@@ -961,7 +980,7 @@ mod tests {
         };
         let height = bad(|s| s.top = s.bottom);
         assert!(matches!(height, MembraneError::Height { .. }));
-        let fields: [(&str, Edit); 7] = [
+        let fields: [(&str, Edit); 8] = [
             ("radius", |s| s.radius = -1.0),
             ("divisions_around", |s| s.divisions_around = 2),
             ("divisions_along", |s| s.divisions_along = 0),
@@ -969,6 +988,7 @@ mod tests {
             ("youngs_modulus", |s| s.youngs_modulus = f64::NAN),
             ("poisson_ratio", |s| s.poisson_ratio = 0.5),
             ("density", |s| s.density = -1.0),
+            ("added_mass", |s| s.added_mass = -1.0),
         ];
         for (name, f) in fields {
             assert!(matches!(bad(f), MembraneError::Parameter { name: n, .. } if n == name));
@@ -1284,7 +1304,19 @@ mod tests {
 
     #[test]
     fn stable_step_is_below_the_true_bound() {
-        let s = spec(8, 3, 0.06);
+        // The sheet alone, and with an added mass 15 times its own on the nodes (the
+        // bound grows with the square root of the areal mass).
+        for added in [0.0, 15.0 * 1100.0 * 0.002] {
+            let s = MembraneSpec {
+                added_mass: added,
+                ..spec(8, 3, 0.06)
+            };
+            stable_step_is_below_the_true_bound_for(&s);
+        }
+    }
+
+    fn stable_step_is_below_the_true_bound_for(s: &MembraneSpec) {
+        let s = s.clone();
         let m = membrane_mesh(&s).unwrap();
         let mut mf = MembraneForces::new(&m, &s, 0, 0.0).unwrap();
         let b = mf.stable_time_step(&[]).unwrap();
