@@ -124,6 +124,65 @@ fn evaluate(model: &mut ContactModel, x: &[[f64; 3]]) -> fdem_contact::ContactRe
         .unwrap()
 }
 
+/// A refresh policy that refreshes any body past the allowance, however many.
+fn refresh_any_body_that_drifted(model: &mut ContactModel) {
+    let policy = RefreshPolicy {
+        near: 1.0,
+        max_fraction: 1.0,
+        max_refreshed_fraction: 1.0,
+    };
+    model.set_refresh_policy(policy).unwrap();
+}
+
+/// A cluster of `n` spheres of 10 mm (`scene`) whose surfaces start 1 to 1.9 margins apart
+/// (`margin_fraction` of the diameter), and its contact model with a depth limit of
+/// `depth_factor` margins. Every motion of the property tests stays contact-free or
+/// shallow, and each new sphere is nearer to its anchor than the boxes' enlargement (at
+/// least 2 margins), so neighbours are always candidates (with gaps up to 3 margins a lone
+/// pair 2.5 margins apart had none: seed 173242).
+fn cluster(
+    seed: u64,
+    n: usize,
+    level: u32,
+    margin_fraction: f64,
+    depth_factor: f64,
+) -> (MeshAssembly, ContactModel) {
+    let d = 0.01;
+    let margin = margin_fraction * d;
+    let assembly = scene(seed, n, level, d, margin..1.9 * margin);
+    let mut model = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    model.set_depth_limit(depth_factor * margin).unwrap();
+    (assembly, model)
+}
+
+fn evaluate_at(model: &mut ContactModel, x: &[[f64; 3]], t: f64) -> fdem_contact::ContactReport {
+    let n = x.len();
+    let mut f = vec![[0.0; 3]; n];
+    model
+        .add_forces(x, &vec![[0.0; 3]; n], t, 1e-7, &mut f)
+        .unwrap()
+}
+
+/// `origin + (I + t rate) (x - origin)`.
+fn mapped(origin: [f64; 3], rate: [[f64; 3]; 3], t: f64, x: [f64; 3]) -> [f64; 3] {
+    let d = sub(x, origin);
+    std::array::from_fn(|i| origin[i] + d[i] + t * dot(rate[i], d))
+}
+
+/// The drift allowance of `fdem_contact::mean_motion`, written out here: half the margin
+/// less `2 g / (1 - g)` times the refresh's reaches, `g = |t rate|` (Frobenius).
+fn allowance(model: &ContactModel, rate: [[f64; 3]; 3], t: f64) -> f64 {
+    let g = t * rate.iter().flatten().map(|r| r * r).sum::<f64>().sqrt();
+    let (e, front) = model.candidate_refresh_reaches();
+    0.5 * model.margin() - 2.0 * g / (1.0 - g) * (e + front)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
@@ -135,17 +194,10 @@ proptest! {
         margin_fraction in 0.01f64..0.05,
         depth_factor in 1.0f64..3.0,
     ) {
-        let d = 0.01;
-        let margin = margin_fraction * d;
-        let depth_limit = depth_factor * margin;
-        // Surfaces start 1 to 1.9 margins apart: every motion below stays contact-free or
-        // shallow, and each new sphere is nearer to its anchor than the boxes' enlargement
-        // (at least 2 margins), so neighbours are always candidates (with gaps up to 3
-        // margins a lone pair 2.5 margins apart had none: seed 173242). The depth limit
-        // varies from 1 to 3 margins; the boxes grow to margin + depth limit.
-        let assembly = scene(seed, n, level, d, margin..1.9 * margin);
-        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, Some(margin));
-        model.set_depth_limit(depth_limit).unwrap();
+        // The depth limit varies from 1 to 3 margins; the boxes grow to margin + depth
+        // limit.
+        let (assembly, mut model) = cluster(seed, n, level, margin_fraction, depth_factor);
+        let (margin, depth_limit) = (model.margin(), model.depth_limit());
         let x0 = assembly.nodes.clone();
         let report = evaluate(&mut model, &x0);
         prop_assert!(report.rebuilt);
@@ -181,11 +233,7 @@ proptest! {
         // that drifted past half the margin, only its pairs are renewed: the pairs without
         // it are kept, and those with it (its nodes, its faces) equal brute force at the
         // new positions with the refresh's reaches.
-        model.set_refresh_policy(RefreshPolicy {
-            near: 1.0,
-            max_fraction: 1.0,
-            max_refreshed_fraction: 1.0,
-        }).unwrap();
+        refresh_any_body_that_drifted(&mut model);
         let mover = seed as usize % assembly.n_bodies();
         let shift = scale(common::random_unit(&mut r), 0.6 * margin);
         let mut x2 = x1.clone();
@@ -210,32 +258,6 @@ proptest! {
         prop_assert!(contact_capable(&assembly, &x2, depth_limit).is_subset(&set2));
         prop_assert_eq!(set2, expect);
     }
-}
-
-fn evaluate_at(model: &mut ContactModel, x: &[[f64; 3]], t: f64) -> fdem_contact::ContactReport {
-    let n = x.len();
-    let mut f = vec![[0.0; 3]; n];
-    model
-        .add_forces(x, &vec![[0.0; 3]; n], t, 1e-7, &mut f)
-        .unwrap()
-}
-
-/// `origin + (I + t rate) (x - origin)`.
-fn mapped(origin: [f64; 3], rate: [[f64; 3]; 3], t: f64, x: [f64; 3]) -> [f64; 3] {
-    let d = sub(x, origin);
-    std::array::from_fn(|i| origin[i] + d[i] + t * dot(rate[i], d))
-}
-
-/// The drift allowance of `fdem_contact::mean_motion`, written out here: half the margin
-/// less `2 g / (1 - g)` times the refresh's reaches, `g = |t rate|` (Frobenius).
-fn allowance(model: &ContactModel, rate: [[f64; 3]; 3], t: f64) -> f64 {
-    let g = t * rate.iter().flatten().map(|r| r * r).sum::<f64>().sqrt();
-    let (e, front) = model.candidate_refresh_reaches();
-    0.5 * model.margin() - 2.0 * g / (1.0 - g) * (e + front)
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
     #[test]
     fn a_mean_motion_keeps_every_contact_capable_pair_listed(
@@ -249,11 +271,8 @@ proptest! {
         // A cluster deformed by a uniform map (a random gradient rate, a few per mille)
         // moves its nodes by several margins, and each node drifts by up to the allowance
         // beyond it: the lists are kept and hold every pair that can be in contact.
-        let d = 0.01;
-        let margin = margin_fraction * d;
-        let assembly = scene(seed, n, level, d, margin..1.9 * margin);
-        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, Some(margin));
-        model.set_depth_limit(depth_factor * margin).unwrap();
+        let (assembly, mut model) = cluster(seed, n, level, margin_fraction, depth_factor);
+        let margin = model.margin();
         let mut r = rng(seed ^ 0xa11);
         let mut rate = [[0.0; 3]; 3];
         for row in &mut rate {
@@ -287,11 +306,7 @@ proptest! {
         // One body drifts past the allowance: only it is refreshed, the lists still hold
         // every contact-capable pair, and its new reference is where the mean motion
         // expects it, so the same positions renew nothing again.
-        model.set_refresh_policy(RefreshPolicy {
-            near: 1.0,
-            max_fraction: 1.0,
-            max_refreshed_fraction: 1.0,
-        }).unwrap();
+        refresh_any_body_that_drifted(&mut model);
         let mover = seed as usize % assembly.n_bodies();
         let shift = scale(common::random_unit(&mut r), 1.1 * rho);
         let mut x2 = x1.clone();
@@ -400,14 +415,7 @@ fn a_mean_motion_spares_the_renewals_of_a_squeeze() {
 
 #[test]
 fn a_mean_motion_that_is_not_finite_is_refused() {
-    let assembly = scene(5, 2, 0, 0.01, 1e-4..2e-4);
-    let mut model = model_for(
-        &assembly,
-        ContactParams::default(),
-        vec![],
-        1e-4,
-        Some(2e-4),
-    );
+    let (_, mut model) = cluster(5, 2, 0, 0.02, 1.0);
     let mut rate = [[0.0; 3]; 3];
     rate[1][2] = f64::NAN;
     let e = model.set_mean_motion([0.0; 3], rate, 0.0).unwrap_err();
