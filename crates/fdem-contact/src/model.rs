@@ -227,7 +227,16 @@ impl fmt::Display for Counterpart {
 /// History key of a contact: surface-node index in the high bits, counterpart code below.
 #[inline]
 pub(crate) fn history_key(surface_index: usize, counterpart: Counterpart) -> u64 {
-    ((surface_index as u64) << 33) | counterpart.code()
+    ((surface_index as u64) << KEY_SHIFT) | counterpart.code()
+}
+
+/// Bits of a [`history_key`] below the surface-node index.
+const KEY_SHIFT: u32 = 33;
+
+/// The surface-node index of a [`history_key`].
+#[inline]
+pub(crate) fn key_surface_index(key: u64) -> usize {
+    (key >> KEY_SHIFT) as usize
 }
 
 /// One active node contact of the last evaluation.
@@ -815,6 +824,17 @@ impl ContactModel {
         self.coefficients.get(k)
     }
 
+    /// Every contact of the last evaluation with the stiffer of its node's springs (N/m)
+    /// and that spring's damping ratio: the springs a stable step over the contact network
+    /// counts (the solver's rigid-body bound).
+    pub fn contact_springs(&self) -> impl Iterator<Item = (&NodeContact, f64, f64)> + '_ {
+        self.contacts.iter().map(|c| {
+            let k = key_surface_index(c.key);
+            let (stiffness, damping_ratio) = stiffer_spring(&self.params, &self.coefficients[k]);
+            (c, stiffness, damping_ratio)
+        })
+    }
+
     /// The narrow-phase kernel in use.
     pub fn projection_kernel(&self) -> ProjectionKernel {
         self.kernel
@@ -1360,7 +1380,7 @@ impl ContactModel {
 
     /// Stored energy `k_n d_n^2 / 2 + k_s |d_s|^2 / 2` of a contact (J).
     fn contact_energy(&self, c: &NodeContact) -> f64 {
-        let k = (c.key >> 33) as usize;
+        let k = key_surface_index(c.key);
         let coef = &self.coefficients[k];
         0.5 * coef.normal_stiffness * c.depth * c.depth
             + 0.5 * coef.tangential_stiffness * norm2(c.tangential_displacement)

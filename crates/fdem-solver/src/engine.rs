@@ -4,15 +4,70 @@
 use crate::checkpoint::SimulationCheckpoint;
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
-use crate::rigid::{RigidBodies, RigidState};
+use crate::rigid::{RigidBodies, RigidState, Spring};
 use crate::{Body, BodyKind, BodyMotion, Connectivity, ContactForces, NodeState, SolverError};
+use fdem_contact::Counterpart;
 use rayon::prelude::*;
 use std::any::Any;
+use std::ops::Range;
 
 const FOREIGN_HANDLE: &str = "a handle of another model was used with this simulation";
 
 /// Nodes per parallel task in the node-update loops.
 const NODE_CHUNK: usize = 4096;
+
+/// The nodes the step's per-node passes (kick, drift, force reset, gravity) update, by
+/// chunk of [`NODE_CHUNK`]: every node but the rigid bodies', whose poses place them and
+/// whose forces their own pass resets. The passes keep the chunks of the whole node array
+/// (one parallel region each, the same tasks for every scene) and skip what a chunk holds
+/// of rigid bodies: in a rigid scene those are nearly all the nodes, and the passes would
+/// compute values the placement overwrites.
+#[derive(Clone, Debug, Default)]
+struct NodeChunks {
+    /// Chunk `c`'s spans are `spans[starts[c]..starts[c + 1]]`.
+    starts: Vec<usize>,
+    /// Node ranges local to their chunk.
+    spans: Vec<Range<usize>>,
+}
+
+impl NodeChunks {
+    /// The chunks of `n` nodes less the disjoint, increasing ranges `rigid`.
+    fn new(n: usize, rigid: impl IntoIterator<Item = Range<usize>>) -> NodeChunks {
+        // The free ranges: the complement of the rigid ones.
+        let mut free = Vec::new();
+        let mut next = 0;
+        for r in rigid {
+            if r.start > next {
+                free.push(next..r.start);
+            }
+            next = next.max(r.end);
+        }
+        if next < n {
+            free.push(next..n);
+        }
+        let mut chunks = NodeChunks {
+            starts: vec![0],
+            spans: Vec::new(),
+        };
+        let mut k = 0;
+        for c in 0..n.div_ceil(NODE_CHUNK) {
+            let (lo, hi) = (c * NODE_CHUNK, ((c + 1) * NODE_CHUNK).min(n));
+            while k < free.len() && free[k].end <= lo {
+                k += 1;
+            }
+            for r in free[k..].iter().take_while(|r| r.start < hi) {
+                chunks.spans.push(r.start.max(lo) - lo..r.end.min(hi) - lo);
+            }
+            chunks.starts.push(chunks.spans.len());
+        }
+        chunks
+    }
+
+    /// The local node ranges of chunk `c` the passes update.
+    fn of(&self, c: usize) -> &[Range<usize>] {
+        &self.spans[self.starts[c]..self.starts[c + 1]]
+    }
+}
 
 /// How the time step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,6 +149,9 @@ pub(crate) struct Assembled {
     pub(crate) gravity: [f64; 3],
     pub(crate) bound: StepBound,
     pub(crate) dt: f64,
+    /// The safety factor of an automatic step, which the rigid bodies' contact network
+    /// may lower ([`Simulation::network_bound`]); `None` for a fixed step.
+    pub(crate) safety: Option<f64>,
     pub(crate) guard: Guard,
 }
 
@@ -107,6 +165,8 @@ pub(crate) struct Assembled {
 /// balance, bound) changes only through its methods.
 pub struct Simulation {
     state: NodeState,
+    /// The nodes the per-node passes update.
+    chunks: NodeChunks,
     bodies: Vec<Body>,
     connectivity: Connectivity,
     elastic: ElasticForces,
@@ -118,6 +178,9 @@ pub struct Simulation {
     step: u64,
     dt: f64,
     bound: StepBound,
+    safety: Option<f64>,
+    /// The contact network's bound that last lowered the step.
+    network: Option<StepBound>,
     guard: Guard,
     initial_energy: f64,
     /// `M c_p^2` of the system (J), the unit of [`Guard::energy_floor`].
@@ -152,6 +215,7 @@ impl Simulation {
             .fold(0.0, f64::max);
         let mut sim = Simulation {
             wave_energy: total_mass * wave_speed * wave_speed,
+            chunks: NodeChunks::new(parts.state.len(), parts.rigid.iter().map(|p| p.nodes())),
             state: parts.state,
             bodies: parts.bodies,
             connectivity: parts.connectivity,
@@ -164,6 +228,8 @@ impl Simulation {
             step: 0,
             dt: parts.dt,
             bound: parts.bound,
+            safety: parts.safety,
+            network: None,
             guard: parts.guard,
             initial_energy: 0.0,
             contribution_work: 0.0,
@@ -185,6 +251,7 @@ impl Simulation {
             )));
         }
         sim.compute_forces()?;
+        sim.follow_network();
         let e = sim.energy();
         sim.initial_energy = e.kinetic + e.strain + e.other_potential;
         let forces = &sim.state.forces;
@@ -298,7 +365,11 @@ impl Simulation {
                 c.positions.len()
             )));
         }
-        if c.dt.to_bits() != self.dt.to_bits() {
+        // A step the contact network lowered is below the model's (which knows only the
+        // contacts it was built with); any other step must be the model's.
+        let adapts = self.safety.is_some() && !self.rigid.is_empty();
+        let lowered = adapts && c.dt.is_finite() && c.dt > 0.0 && c.dt < self.dt;
+        if !lowered && c.dt.to_bits() != self.dt.to_bits() {
             return Err(mismatch(format!(
                 "step {:e} s saved, {:e} s in the model",
                 c.dt, self.dt
@@ -350,6 +421,14 @@ impl Simulation {
         ] = c.energy;
         self.time = c.time;
         self.step = c.step;
+        if lowered {
+            self.dt = c.dt;
+            let safety = self.safety.unwrap_or(1.0);
+            self.network = Some(StepBound {
+                dt: c.dt / safety,
+                source: "contact network (the restored run's step)".into(),
+            });
+        }
         Ok(())
     }
 
@@ -408,9 +487,22 @@ impl Simulation {
         self.dt
     }
 
+    /// Sets the time step (s) and keeps it: unlike [`Simulation::set_dt`], the rigid
+    /// bodies' contact network no longer lowers it (a probe of the step's stability
+    /// wants the step it asked for).
+    ///
+    /// # Errors
+    /// [`SolverError::InvalidScene`] for a step that is not finite and > 0.
+    pub fn fix_dt(&mut self, dt: f64) -> Result<(), SolverError> {
+        self.set_dt(dt)?;
+        self.safety = None;
+        Ok(())
+    }
+
     /// Changes the step from the next step on, even above the stable bound (the guard
     /// watches): velocity Verlet holds velocities at whole steps, so a new step needs no
-    /// restart.
+    /// restart. With an automatic step the rigid bodies' contact network may still lower
+    /// it ([`Simulation::fix_dt`] keeps it).
     ///
     /// # Errors
     /// [`SolverError::InvalidScene`] for a step that is not finite and > 0.
@@ -429,6 +521,62 @@ impl Simulation {
     /// contribution's bound if smaller.
     pub fn bound(&self) -> &StepBound {
         &self.bound
+    }
+
+    /// The contact network's bound that last lowered an automatic step
+    /// ([`Simulation::rigid_network_bound`]), if it did.
+    pub fn network_bound(&self) -> Option<&StepBound> {
+        self.network.as_ref()
+    }
+
+    /// With an automatic step and rigid bodies, lowers the step to the safety factor times
+    /// the contact network's bound when that is smaller: springs that act together on one
+    /// rigid body make it stiffer than the bound known before the contacts formed. The step
+    /// never rises again, so a run's step is the smallest its network has asked for; it
+    /// follows from the state, so a resumed run takes the same steps.
+    fn follow_network(&mut self) {
+        let Some(safety) = self.safety else {
+            return;
+        };
+        if self.rigid.is_empty() {
+            return;
+        }
+        if let Some(b) = self.rigid_network_bound() {
+            let dt = safety * b.dt;
+            if dt < self.dt {
+                self.dt = dt;
+                self.network = Some(b);
+            }
+        }
+    }
+
+    /// The rigid bodies' stable step under the contact springs of the last evaluation,
+    /// each body counting every spring that acts on it (`None` without rigid contacts):
+    /// the bound [`Simulation::bound`] cannot know before the contacts form
+    /// (docs/MODEL.md, "Time step").
+    pub fn rigid_network_bound(&self) -> Option<StepBound> {
+        let contact = self.contact.as_ref()?;
+        let springs = contact
+            .model()
+            .contact_springs()
+            .map(|(c, k, zeta)| Spring {
+                body: c.body as usize,
+                point: c.position,
+                other: match c.counterpart {
+                    Counterpart::Body(b) => Some((b as usize, c.contact_point)),
+                    Counterpart::Wall(_) => None,
+                },
+                stiffness: k,
+                damping_ratio: zeta,
+            });
+        let b = self.rigid.network_bound(springs)?;
+        Some(StepBound {
+            dt: b.dt,
+            source: format!(
+                "contact network: rigid body {}, {} springs",
+                b.body, b.springs
+            ),
+        })
     }
 
     /// Stability guard settings.
@@ -624,7 +772,12 @@ impl Simulation {
         for c in &mut self.parts.contributions {
             powers.add(c.add_forces(view, forces)?);
         }
-        add_gravity(self.gravity, &state.masses, &state.inverse_masses, forces);
+        add_gravity(
+            self.gravity,
+            (&state.masses, &state.inverse_masses),
+            forces,
+            &self.chunks,
+        );
         for c in &mut self.parts.constraints {
             powers.add(c.apply(view, forces)?);
         }
@@ -648,10 +801,13 @@ impl Simulation {
     /// does: from any other thread every region is a hand-over to the pool and a wake-up.
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
-        kick_drift_and_reset(&mut self.state, half, dt);
+        kick_drift_and_reset(&mut self.state, half, dt, &self.chunks);
         let s = &mut self.state;
-        self.rigid
-            .kick_drift(half, dt, &mut s.positions, &mut s.velocities);
+        self.rigid.kick_drift(
+            half,
+            dt,
+            [&mut s.positions, &mut s.velocities, &mut s.forces],
+        );
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.add_forces() {
@@ -669,13 +825,19 @@ impl Simulation {
         self.damping_dissipated += dt * self.last_powers.damping;
         self.friction_dissipated += self.last_powers.friction_energy;
         let s = &mut self.state;
-        self.rigid.kick(half, &mut s.positions, &mut s.velocities);
-        let finite = kick(&mut self.state, half);
+        let nodes = [
+            &mut s.positions[..],
+            &mut s.velocities[..],
+            &mut s.forces[..],
+        ];
+        let rigid_finite = self.rigid.kick(half, nodes);
+        let finite = kick(&mut self.state, half, &self.chunks) && rigid_finite;
         self.step = step;
         self.time = time;
         if !finite {
             return Err(self.unstable(step, time, "a velocity became non-finite".into()));
         }
+        self.follow_network();
         if self.guard.check_interval > 0 && step % self.guard.check_interval == 0 {
             self.check_energy()?;
         }
@@ -870,22 +1032,23 @@ fn not_finite(e: &EnergyReport) -> String {
     }
 }
 
-/// Adds `m g` to every node's force.
 /// Adds `m g` to the force of every node the node update moves (rigid bodies take their
 /// weight as a whole).
-fn add_gravity(g: [f64; 3], masses: &[f64], inverse_masses: &[f64], forces: &mut [[f64; 3]]) {
+fn add_gravity(g: [f64; 3], s: (&[f64], &[f64]), forces: &mut [[f64; 3]], chunks: &NodeChunks) {
     if g == [0.0; 3] {
         return;
     }
+    let (masses, inverse_masses) = s;
     forces
         .par_chunks_mut(NODE_CHUNK)
         .zip(masses.par_chunks(NODE_CHUNK))
         .zip(inverse_masses.par_chunks(NODE_CHUNK))
-        .for_each(|((f, m), im)| {
-            for ((fi, &mi), &wi) in f.iter_mut().zip(m).zip(im) {
-                if wi > 0.0 {
+        .enumerate()
+        .for_each(|(c, ((f, m), im))| {
+            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
+                if im[i] > 0.0 {
                     for k in 0..3 {
-                        fi[k] += mi * g[k];
+                        f[i][k] += m[i] * g[k];
                     }
                 }
             }
@@ -894,14 +1057,15 @@ fn add_gravity(g: [f64; 3], masses: &[f64], inverse_masses: &[f64], forces: &mut
 
 /// The first half kick and the drift, `v += dt/2 f/m`, `x += dt v`; then the forces, used
 /// up, are reset to zero for the step's new ones (one pass over the nodes instead of two).
-fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64) {
+fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64, chunks: &NodeChunks) {
     s.positions
         .par_chunks_mut(NODE_CHUNK)
         .zip(s.velocities.par_chunks_mut(NODE_CHUNK))
         .zip(s.forces.par_chunks_mut(NODE_CHUNK))
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
-        .for_each(|(((x, v), f), im)| {
-            for i in 0..x.len() {
+        .enumerate()
+        .for_each(|(c, (((x, v), f), im))| {
+            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
                 for k in 0..3 {
                     v[i][k] += half * f[i][k] * im[i];
                     x[i][k] += dt * v[i][k];
@@ -912,14 +1076,15 @@ fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64) {
 }
 
 /// The second half kick, `v += dt/2 f/m`; false if a velocity became non-finite.
-fn kick(s: &mut NodeState, half: f64) -> bool {
+fn kick(s: &mut NodeState, half: f64, chunks: &NodeChunks) -> bool {
     s.velocities
         .par_chunks_mut(NODE_CHUNK)
         .zip(s.forces.par_chunks(NODE_CHUNK))
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
-        .map(|((v, f), im)| {
+        .enumerate()
+        .map(|(c, ((v, f), im))| {
             let mut ok = true;
-            for i in 0..v.len() {
+            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
                 for k in 0..3 {
                     v[i][k] += half * f[i][k] * im[i];
                     ok &= v[i][k].is_finite();
@@ -952,5 +1117,36 @@ mod tests {
             ..EnergyReport::default()
         };
         assert_eq!(not_finite(&sum), "their sum overflows");
+    }
+
+    /// The per-node passes visit every node but the rigid bodies', each once, in its own
+    /// chunk: rigid ranges across chunk boundaries, at either end and back to back.
+    #[test]
+    fn node_chunks_cover_exactly_the_nodes_of_no_rigid_body() {
+        let n = 3 * NODE_CHUNK + 17;
+        let rigid = [
+            0..5,
+            5..9,
+            NODE_CHUNK - 3..NODE_CHUNK + 40,
+            2 * NODE_CHUNK..n - 1,
+        ];
+        let chunks = NodeChunks::new(n, rigid.iter().cloned());
+        let mut visited = vec![0u32; n];
+        for c in 0..n.div_ceil(NODE_CHUNK) {
+            for r in chunks.of(c) {
+                assert!(r.end <= NODE_CHUNK && r.start < r.end, "chunk {c}: {r:?}");
+                for i in r.clone() {
+                    visited[c * NODE_CHUNK + i] += 1;
+                }
+            }
+        }
+        for (i, &count) in visited.iter().enumerate() {
+            let in_rigid = rigid.iter().any(|r| r.contains(&i));
+            assert_eq!(count, u32::from(!in_rigid), "node {i}");
+        }
+        // Without rigid bodies every chunk is one whole span.
+        let all = NodeChunks::new(n, []);
+        assert_eq!(all.of(0).to_vec(), vec![0..NODE_CHUNK]);
+        assert_eq!(all.of(3).to_vec(), vec![0..17]);
     }
 }

@@ -503,6 +503,10 @@ impl ModelBuilder {
             gravity: self.gravity,
             bound,
             dt,
+            safety: match self.time_step {
+                TimeStep::Automatic { safety } => Some(safety),
+                TimeStep::Fixed(_) => None,
+            },
             guard: self.guard,
         })
     }

@@ -340,6 +340,11 @@ impl RigidPart {
         }
     }
 
+    /// The body's node range.
+    pub(crate) fn nodes(&self) -> std::ops::Range<usize> {
+        self.first..self.first + self.offsets.len()
+    }
+
     /// A kick of duration `h` with the force and torque of the last evaluation.
     pub(crate) fn kick(&mut self, h: f64) {
         self.state.kick(&self.inertia, self.force, self.torque, h);
@@ -504,18 +509,14 @@ impl RigidBodies {
     }
 
     /// First half of a step: half kick with the last force and torque, drift over `dt`,
-    /// nodes placed from the new pose.
-    pub(crate) fn kick_drift(
-        &mut self,
-        half: f64,
-        dt: f64,
-        x: &mut [[f64; 3]],
-        v: &mut [[f64; 3]],
-    ) {
-        with_nodes(&mut self.parts, x, v, 0, &|p, x, v| {
+    /// nodes placed from the new pose, their forces reset for the step's new ones.
+    pub(crate) fn kick_drift(&mut self, half: f64, dt: f64, nodes: NodeRanges<'_>) {
+        with_nodes(&mut self.parts, nodes, 0, &|p, [x, v, f]| {
             p.kick(half);
             p.state.drift(&p.inertia, dt);
             p.place_nodes(x, v);
+            f.fill([0.0; 3]);
+            true
         });
     }
 
@@ -528,41 +529,322 @@ impl RigidBodies {
             .for_each(|p| p.gather(positions, forces, g));
     }
 
-    /// Second half kick, node velocities from the new momenta.
-    pub(crate) fn kick(&mut self, half: f64, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
-        with_nodes(&mut self.parts, x, v, 0, &|p, x, v| {
+    /// Second half kick, node velocities from the new momenta; false if a node velocity
+    /// is not finite.
+    pub(crate) fn kick(&mut self, half: f64, nodes: NodeRanges<'_>) -> bool {
+        with_nodes(&mut self.parts, nodes, 0, &|p, [x, v, _]| {
             p.kick(half);
             p.place_velocities(x, v);
-        });
+            v.iter().flatten().all(|c| c.is_finite())
+        })
     }
 }
 
-/// A pass over one rigid body with its node positions and velocities.
-type PartPass<'a> = dyn Fn(&mut RigidPart, &mut [[f64; 3]], &mut [[f64; 3]]) + Sync + 'a;
+/// The step the contact network allows the rigid bodies: the smallest over the bodies,
+/// with the body that sets it and how many springs act on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct NetworkBound {
+    pub(crate) dt: f64,
+    pub(crate) body: usize,
+    pub(crate) springs: usize,
+}
 
-/// Calls `f` on every part with its own node ranges of `x` and `v` (which start at
-/// global node `offset`), splitting the parts in halves with `rayon::join`.
+/// One contact spring as the rigid bodies' step bound sees it: a node of `body` at `point`
+/// pressed into a face of another body at that body's point (`other`), or into a wall
+/// (`None`), with the stiffer of its springs (N/m) and that spring's damping ratio.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Spring {
+    pub(crate) body: usize,
+    pub(crate) point: [f64; 3],
+    pub(crate) other: Option<(usize, [f64; 3])>,
+    pub(crate) stiffness: f64,
+    pub(crate) damping_ratio: f64,
+}
+
+/// A rigid body's share of the contact network: the moments of its springs' stiffness
+/// about its centre, `sum f k`, `sum f k r` and `sum f k r r^T` (rows xx, yy, zz, xy, xz,
+/// yz), `r` from the centre to the spring's point, `f` its coupling factor.
+#[derive(Clone, Copy, Default)]
+struct BodySprings {
+    k: f64,
+    kr: [f64; 3],
+    krr: [f64; 6],
+    damping_ratio: f64,
+    springs: usize,
+}
+
+impl BodySprings {
+    fn add(&mut self, r: [f64; 3], k: f64, damping_ratio: f64) {
+        self.k += k;
+        for (m, ri) in self.kr.iter_mut().zip(r) {
+            *m += k * ri;
+        }
+        let [x, y, z] = r;
+        for (m, v) in self
+            .krr
+            .iter_mut()
+            .zip([x * x, y * y, z * z, x * y, x * z, y * z])
+        {
+            *m += k * v;
+        }
+        self.damping_ratio = self.damping_ratio.max(damping_ratio);
+        self.springs += 1;
+    }
+
+    /// A bound of the largest eigenvalue of `M^-1 K` for the body's block: `K` is
+    /// `[[k I, -[kr]x], [[kr]x, tr(krr) I - krr]]` (each spring isotropic with its stiffer
+    /// stiffness, which only adds stiffness), `M` at least `diag(m I, I_min I)`, and the
+    /// largest row sum of absolute values of `M^-1/2 K M^-1/2` bounds its eigenvalues
+    /// (Gershgorin).
+    fn omega2(&self, mass: f64, i_min: f64) -> f64 {
+        let [xx, yy, zz, xy, xz, yz] = self.krr;
+        let trace = xx + yy + zz;
+        let c = 1.0 / (mass * i_min).sqrt();
+        let a = self.kr.map(f64::abs);
+        // |[kr]x| has rows (0, a_z, a_y), (a_z, 0, a_x), (a_y, a_x, 0) in absolute value.
+        let coupling = [a[1] + a[2], a[0] + a[2], a[0] + a[1]];
+        let rotation = [
+            trace - xx + xy.abs() + xz.abs(),
+            trace - yy + xy.abs() + yz.abs(),
+            trace - zz + xz.abs() + yz.abs(),
+        ];
+        (0..3)
+            .map(|i| {
+                let translational = self.k / mass + c * coupling[i];
+                let rotational = rotation[i] / i_min + c * coupling[i];
+                translational.max(rotational)
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+impl RigidBodies {
+    /// The stable step of the rigid bodies under the contact springs acting now. A rigid
+    /// body gathers every spring that touches it, its own nodes' and the other bodies'
+    /// nodes pressing its faces, so that its modes under several contacts are stiffer than
+    /// any one node's spring-mass pair (the per-node bound of the contact model).
+    ///
+    /// The bound: the springs' stiffness is `K = sum_c k_c g_c g_c^T`, `g_c` a spring
+    /// direction mapped onto the velocities of the two bodies it joins; in mass-weighted
+    /// coordinates `u_c = M^-1/2 g_c`. With `(a + b)(a + b)^T <= 2 (a a^T + b b^T)` the
+    /// matrix is at most the block-diagonal one whose block for body `B` is `2 sum_c k_c
+    /// u_cB u_cB^T` (a wall does not move: no factor 2), so `omega_max^2` is at most the
+    /// largest eigenvalue of any body's block, bounded by [`BodySprings::omega2`].
+    /// Deformable nodes keep the per-node and element bounds. The spring-dashpot factor
+    /// uses the springs' damping ratio ([`fdem_contact::spring_dashpot_time_step`]).
+    /// `None` without rigid contacts.
+    pub(crate) fn network_bound(
+        &self,
+        springs: impl Iterator<Item = Spring>,
+    ) -> Option<NetworkBound> {
+        let mut sums = vec![BodySprings::default(); self.parts.len()];
+        let mut add = |part: usize, point: [f64; 3], k: f64, zeta: f64| {
+            let c = self.parts[part].state.position;
+            let r = [point[0] - c[0], point[1] - c[1], point[2] - c[2]];
+            sums[part].add(r, k, zeta);
+        };
+        for spring in springs {
+            // A spring between two bodies counts twice in each (the bound's factor 2).
+            let k = match spring.other {
+                Some(_) => 2.0 * spring.stiffness,
+                None => spring.stiffness,
+            };
+            if let Some(part) = self.part_of(spring.body) {
+                add(part, spring.point, k, spring.damping_ratio);
+            }
+            if let Some((body, point)) = spring.other
+                && let Some(part) = self.part_of(body)
+            {
+                add(part, point, k, spring.damping_ratio);
+            }
+        }
+        sums.iter()
+            .zip(&self.parts)
+            .filter(|(s, _)| s.springs > 0)
+            .map(|(s, p)| {
+                let i_min = p
+                    .inertia
+                    .principal
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min);
+                let omega2 = s.omega2(p.inertia.mass, i_min);
+                NetworkBound {
+                    dt: fdem_contact::spring_dashpot_time_step(omega2, 1.0, s.damping_ratio),
+                    body: p.body,
+                    springs: s.springs,
+                }
+            })
+            .min_by(|a, b| a.dt.total_cmp(&b.dt))
+    }
+
+    /// The index in `parts` of rigid body `body`, if it is one.
+    fn part_of(&self, body: usize) -> Option<usize> {
+        self.parts.binary_search_by_key(&body, |p| p.body).ok()
+    }
+}
+
+/// A pass over one rigid body with its ranges of the node positions, velocities and
+/// forces; false reports a failure (the pass still runs over every body).
+type PartPass<'a> = dyn Fn(&mut RigidPart, NodeRanges<'_>) -> bool + Sync + 'a;
+
+/// Ranges of the node positions, velocities and forces.
+type NodeRanges<'a> = [&'a mut [[f64; 3]]; 3];
+
+/// Calls `f` on every part with its own ranges of the node arrays (which start at global
+/// node `offset`), splitting the parts in halves with `rayon::join`; true when every call
+/// returned true.
 fn with_nodes(
     parts: &mut [RigidPart],
-    x: &mut [[f64; 3]],
-    v: &mut [[f64; 3]],
+    [x, v, forces]: NodeRanges<'_>,
     offset: usize,
     f: &PartPass<'_>,
-) {
+) -> bool {
     if parts.len() <= SERIAL_BODIES {
+        let mut ok = true;
         for p in parts {
             let r = p.first - offset..p.first - offset + p.offsets.len();
-            f(p, &mut x[r.clone()], &mut v[r]);
+            ok &= f(p, [&mut x[r.clone()], &mut v[r.clone()], &mut forces[r]]);
         }
-        return;
+        return ok;
     }
     let mid = parts.len() / 2;
     let split = parts[mid].first;
     let (left, right) = parts.split_at_mut(mid);
     let (xl, xr) = x.split_at_mut(split - offset);
     let (vl, vr) = v.split_at_mut(split - offset);
-    rayon::join(
-        || with_nodes(left, xl, vl, offset, f),
-        || with_nodes(right, xr, vr, split, f),
+    let (fl, fr) = forces.split_at_mut(split - offset);
+    let (a, b) = rayon::join(
+        || with_nodes(left, [xl, vl, fl], offset, f),
+        || with_nodes(right, [xr, vr, fr], split, f),
     );
+    a && b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, SymmetricEigen as Eigen};
+    use proptest::prelude::*;
+
+    /// A body of mass `m` and principal moments `i` at `x`, in the world's axes.
+    fn part(body: usize, m: f64, i: [f64; 3], x: [f64; 3]) -> RigidPart {
+        let tensor = [[i[0], 0.0, 0.0], [0.0, i[1], 0.0], [0.0, 0.0, i[2]]];
+        let inertia = RigidInertia::new(m, tensor).expect("valid inertia");
+        let state = RigidState::new(&inertia, x, [0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3]);
+        RigidPart::new(body, 0, Vec::new(), inertia, state)
+    }
+
+    /// `[r]x`, the cross-product matrix.
+    fn skew(r: [f64; 3]) -> DMatrix<f64> {
+        DMatrix::from_row_slice(
+            3,
+            3,
+            &[0.0, -r[2], r[1], r[2], 0.0, -r[0], -r[1], r[0], 0.0],
+        )
+    }
+
+    /// The largest eigenvalue of `M^-1 K` for the bodies and isotropic springs, assembled
+    /// densely: a spring's stretch rate is `v_A + w_A x r_A - (v_B + w_B x r_B)`.
+    fn exact_omega2(bodies: &RigidBodies, springs: &[Spring]) -> f64 {
+        let n = 6 * bodies.parts.len();
+        let mut k = DMatrix::zeros(n, n);
+        for s in springs {
+            let mut g = DMatrix::zeros(3, n);
+            let mut put = |body: usize, point: [f64; 3], sign: f64| {
+                let j = bodies.part_of(body).expect("a rigid body");
+                let c = bodies.parts[j].state.position;
+                let r = [point[0] - c[0], point[1] - c[1], point[2] - c[2]];
+                let block = DMatrix::identity(3, 3) * sign;
+                g.view_mut((0, 6 * j), (3, 3)).copy_from(&block);
+                g.view_mut((0, 6 * j + 3), (3, 3))
+                    .copy_from(&(skew(r) * -sign));
+            };
+            put(s.body, s.point, 1.0);
+            if let Some((b, p)) = s.other {
+                put(b, p, -1.0);
+            }
+            k += g.transpose() * &g * s.stiffness;
+        }
+        let mut scale = DMatrix::zeros(n, n);
+        for (j, p) in bodies.parts.iter().enumerate() {
+            for a in 0..3 {
+                scale[(6 * j + a, 6 * j + a)] = 1.0 / p.inertia.mass.sqrt();
+                scale[(6 * j + 3 + a, 6 * j + 3 + a)] = 1.0 / p.inertia.principal[a].sqrt();
+            }
+        }
+        let a = &scale * k * &scale;
+        Eigen::new(a)
+            .eigenvalues
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// The network bound is a bound: for random bodies joined by random springs (body
+        /// pairs and walls, points anywhere near the bodies), its `omega^2` is at least the
+        /// exact largest eigenvalue of `M^-1 K`, and within a modest factor of it.
+        #[test]
+        fn the_network_bound_bounds_the_exact_largest_frequency(
+            masses in prop::collection::vec(0.5f64..2.0, 3),
+            moments in prop::collection::vec((0.05f64..0.3, 0.05f64..0.3, 0.05f64..0.3), 3),
+            springs in prop::collection::vec(
+                (0usize..3, 0usize..4, prop::array::uniform3(-0.6f64..0.6), 1.0f64..10.0),
+                1..24,
+            ),
+        ) {
+            let centres = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+            let parts = (0..3)
+                .map(|j| {
+                    let (a, b, c) = moments[j];
+                    part(2 * j, masses[j], [a, b, c], centres[j])
+                })
+                .collect();
+            let bodies = RigidBodies::new(parts);
+            let springs: Vec<Spring> = springs
+                .iter()
+                .map(|&(a, b, offset, k)| {
+                    let point = |j: usize| {
+                        let c = centres[j];
+                        [c[0] + offset[0], c[1] + offset[1], c[2] + offset[2]]
+                    };
+                    Spring {
+                        body: 2 * a,
+                        point: point(a),
+                        // 3 stands for a wall; otherwise another body's point.
+                        other: (b < 3 && b != a).then(|| (2 * b, point(b))),
+                        stiffness: k,
+                        damping_ratio: 0.0,
+                    }
+                })
+                .collect();
+            let exact = exact_omega2(&bodies, &springs);
+            let b = bodies.network_bound(springs.iter().copied()).expect("springs on rigid bodies");
+            let bound = 4.0 / (b.dt * b.dt);
+            prop_assert!(bound >= exact * (1.0 - 1e-9), "bound {bound} below exact {exact}");
+            prop_assert!(bound <= 12.0 * exact, "bound {bound} far above exact {exact}");
+        }
+    }
+
+    /// Springs on bodies that are not rigid give no bound, and a body's count includes
+    /// the springs of other bodies' nodes on its faces.
+    #[test]
+    fn the_network_bound_names_the_body_and_counts_its_springs() {
+        let bodies = RigidBodies::new(vec![part(1, 1.0, [0.1; 3], [0.0; 3])]);
+        let on = |body, other| Spring {
+            body,
+            point: [0.0, 0.0, -0.5],
+            other,
+            stiffness: 1.0,
+            damping_ratio: 0.0,
+        };
+        assert_eq!(bodies.network_bound([on(0, None)].into_iter()), None);
+        let b = bodies
+            .network_bound([on(1, None), on(0, Some((1, [0.5, 0.0, 0.0])))].into_iter())
+            .expect("a rigid body");
+        assert_eq!((b.body, b.springs), (1, 2));
+    }
 }

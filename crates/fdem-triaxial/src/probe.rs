@@ -119,7 +119,7 @@ pub fn probe(
     let mut model = TestModel::build(prepared, None)?;
     let bound = model.sim.bound().clone();
     let dt = dt_factor * bound.dt;
-    model.sim.set_dt(dt).map_err(setup)?;
+    model.sim.fix_dt(dt).map_err(setup)?;
     model.sim.set_guard(Guard::default());
     model.set_pressure(prepared.spec.confining_pressure);
     model.sim.rebase_energy().map_err(setup)?;

@@ -286,6 +286,13 @@ pub struct TestSummary {
     /// it (up to `TEST_DEPTH_LIMIT_CAP_DIAMETERS` of the smallest particle diameter).
     #[serde(default)]
     pub final_depth_limit: f64,
+    /// The step at the end (s): the plan's, or smaller where the rigid bodies' contact
+    /// network lowered it (`fdem_solver::Simulation::network_bound`), and what set it.
+    #[serde(default)]
+    pub final_dt: f64,
+    /// What set `final_dt`: the plan's bound or the contact network.
+    #[serde(default)]
+    pub final_dt_source: String,
     /// Relative energy-balance error at the end.
     pub energy_balance_error: f64,
     /// With `TestOptions::energy_jumps`: the stored-energy jumps per phase and cause.
@@ -775,6 +782,7 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
     let consolidation_steps_max = (consolidation_time / dt).ceil() as u64;
     let shear_steps = spec.shear_steps(dt);
     let membrane = &model.membrane_spec;
+    let bound = model.sim.network_bound().unwrap_or(model.sim.bound());
     TestSummary {
         run_id,
         status: "running".into(),
@@ -792,8 +800,10 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
             elements: model.elements,
             membrane_nodes: model.membrane().n_nodes(),
             dt,
-            dt_bound: model.sim.bound().dt,
-            dt_bound_source: model.sim.bound().source.clone(),
+            // What sets the step: the contact network of the rigid bodies where it lowered
+            // the step below the model's bound, else that bound.
+            dt_bound: bound.dt,
+            dt_bound_source: bound.source.clone(),
             contact_margin: model.sim.contact().map_or(f64::NAN, |c| c.model().margin()),
             depth_limit: model
                 .sim
@@ -828,6 +838,8 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
         discarded_membrane_hits_max: 0,
         max_contact_depth: 0.0,
         final_depth_limit: f64::NAN,
+        final_dt: f64::NAN,
+        final_dt_source: String::new(),
         energy_balance_error: 0.0,
         energy_jumps: None,
         energy: EnergyReport::default(),
@@ -961,6 +973,14 @@ pub fn run_test(
         .sim
         .contact()
         .map_or(f64::NAN, |c| c.model().depth_limit());
+    summary.final_dt = run.model.sim.dt();
+    summary.final_dt_source = run
+        .model
+        .sim
+        .network_bound()
+        .unwrap_or(run.model.sim.bound())
+        .source
+        .clone();
     if let Some(tally) = run.jumps.as_mut() {
         let path = run.options.out_dir.join("energy_jumps.csv");
         summary.energy_jumps = Some(tally.finish().map_err(io(&path))?);
