@@ -417,7 +417,13 @@ impl Frame {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct RigidBodies {
     parts: Vec<RigidPart>,
+    /// For each body id up to the last rigid one, its index in `parts` (`NOT_RIGID` for a
+    /// body of another kind): the network bound looks up two bodies per contact.
+    index: Vec<u32>,
 }
+
+/// [`RigidBodies::index`] of a body that is not rigid.
+const NOT_RIGID: u32 = u32::MAX;
 
 /// Bodies handled serially below this count per task (keeps rayon's overhead small).
 const SERIAL_BODIES: usize = 64;
@@ -425,7 +431,11 @@ const SERIAL_BODIES: usize = 64;
 impl RigidBodies {
     pub(crate) fn new(parts: Vec<RigidPart>) -> Self {
         debug_assert!(parts.windows(2).all(|w| w[0].first < w[1].first));
-        RigidBodies { parts }
+        let mut index = vec![NOT_RIGID; parts.iter().map(|p| p.body + 1).max().unwrap_or(0)];
+        for (i, p) in parts.iter().enumerate() {
+            index[p.body] = i as u32;
+        }
+        RigidBodies { parts, index }
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -438,8 +448,7 @@ impl RigidBodies {
 
     /// The rigid body of body id `body`, if it is one.
     pub(crate) fn get(&self, body: usize) -> Option<&RigidPart> {
-        let k = self.parts.binary_search_by_key(&body, |p| p.body).ok()?;
-        self.parts.get(k)
+        self.part_of(body).map(|k| &self.parts[k])
     }
 
     /// Sets every body's state (`states` in body order) and places its nodes in `x`, `v`.
@@ -680,7 +689,10 @@ impl RigidBodies {
 
     /// The index in `parts` of rigid body `body`, if it is one.
     fn part_of(&self, body: usize) -> Option<usize> {
-        self.parts.binary_search_by_key(&body, |p| p.body).ok()
+        match self.index.get(body) {
+            Some(&i) if i != NOT_RIGID => Some(i as usize),
+            _ => None,
+        }
     }
 }
 
