@@ -825,13 +825,13 @@ impl ContactModel {
     }
 
     /// Every contact of the last evaluation with the stiffer of its node's springs (N/m)
-    /// and that spring's damping ratio: the springs a stable step over the contact network
+    /// and the larger of its dashpots (N s/m): what a stable step over the contact network
     /// counts (the solver's rigid-body bound).
     pub fn contact_springs(&self) -> impl Iterator<Item = (&NodeContact, f64, f64)> + '_ {
         self.contacts.iter().map(|c| {
-            let k = key_surface_index(c.key);
-            let (stiffness, damping_ratio) = stiffer_spring(&self.params, &self.coefficients[k]);
-            (c, stiffness, damping_ratio)
+            let k = &self.coefficients[key_surface_index(c.key)];
+            let stiffness = k.normal_stiffness.max(k.tangential_stiffness);
+            (c, stiffness, k.normal_damping.max(k.tangential_damping))
         })
     }
 

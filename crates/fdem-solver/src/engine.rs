@@ -559,7 +559,7 @@ impl Simulation {
         let springs = contact
             .model()
             .contact_springs()
-            .map(|(c, k, zeta)| Spring {
+            .map(|(c, k, dashpot)| Spring {
                 body: c.body as usize,
                 point: c.position,
                 other: match c.counterpart {
@@ -567,7 +567,7 @@ impl Simulation {
                     Counterpart::Wall(_) => None,
                 },
                 stiffness: k,
-                damping_ratio: zeta,
+                dashpot,
             });
         let b = self.rigid.network_bound(springs)?;
         Some(StepBound {

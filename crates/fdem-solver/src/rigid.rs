@@ -38,6 +38,11 @@ pub struct RigidInertia {
 }
 
 impl RigidInertia {
+    /// The smallest principal moment (kg m^2).
+    pub(crate) fn smallest_moment(&self) -> f64 {
+        self.principal.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
     /// The principal moments and axes of the inertia tensor `inertia` (kg m^2, about the
     /// centre of mass) of a body of mass `mass`.
     ///
@@ -328,12 +333,7 @@ impl RigidPart {
     /// effective mass at that node. `out` is the body's own node range.
     pub(crate) fn effective_masses(&self, out: &mut [f64]) {
         let m = self.inertia.mass;
-        let i_min = self
-            .inertia
-            .principal
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
+        let i_min = self.inertia.smallest_moment();
         for (o, r) in out.iter_mut().zip(&self.offsets) {
             let r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
             *o = 1.0 / (1.0 / m + r2 / i_min);
@@ -560,57 +560,51 @@ pub(crate) struct NetworkBound {
 
 /// One contact spring as the rigid bodies' step bound sees it: a node of `body` at `point`
 /// pressed into a face of another body at that body's point (`other`), or into a wall
-/// (`None`), with the stiffer of its springs (N/m) and that spring's damping ratio.
+/// (`None`), with the stiffer of its springs (N/m) and the larger of its dashpots (N s/m).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Spring {
     pub(crate) body: usize,
     pub(crate) point: [f64; 3],
     pub(crate) other: Option<(usize, [f64; 3])>,
     pub(crate) stiffness: f64,
-    pub(crate) damping_ratio: f64,
+    pub(crate) dashpot: f64,
 }
 
-/// A rigid body's share of the contact network: the moments of its springs' stiffness
-/// about its centre, `sum f k`, `sum f k r` and `sum f k r r^T` (rows xx, yy, zz, xy, xz,
-/// yz), `r` from the centre to the spring's point, `f` its coupling factor.
+/// Moments about a body's centre of coefficients `w` acting at points `r` from it: `sum
+/// w`, `sum w r` and `sum w r r^T` (rows xx, yy, zz, xy, xz, yz). They make the body's
+/// block of a stiffness or damping matrix built of isotropic point couplings.
 #[derive(Clone, Copy, Default)]
-struct BodySprings {
-    k: f64,
-    kr: [f64; 3],
-    krr: [f64; 6],
-    damping_ratio: f64,
-    springs: usize,
+struct Moments {
+    w: f64,
+    wr: [f64; 3],
+    wrr: [f64; 6],
 }
 
-impl BodySprings {
-    fn add(&mut self, r: [f64; 3], k: f64, damping_ratio: f64) {
-        self.k += k;
-        for (m, ri) in self.kr.iter_mut().zip(r) {
-            *m += k * ri;
+impl Moments {
+    fn add(&mut self, r: [f64; 3], w: f64) {
+        self.w += w;
+        for (m, ri) in self.wr.iter_mut().zip(r) {
+            *m += w * ri;
         }
         let [x, y, z] = r;
         for (m, v) in self
-            .krr
+            .wrr
             .iter_mut()
             .zip([x * x, y * y, z * z, x * y, x * z, y * z])
         {
-            *m += k * v;
+            *m += w * v;
         }
-        self.damping_ratio = self.damping_ratio.max(damping_ratio);
-        self.springs += 1;
     }
 
-    /// A bound of the largest eigenvalue of `M^-1 K` for the body's block: `K` is
-    /// `[[k I, -[kr]x], [[kr]x, tr(krr) I - krr]]` (each spring isotropic with its stiffer
-    /// stiffness, which only adds stiffness), `M` at least `diag(m I, I_min I)`, and the
-    /// largest row sum of absolute values of `M^-1/2 K M^-1/2` bounds its eigenvalues
-    /// (Gershgorin).
-    fn omega2(&self, mass: f64, i_min: f64) -> f64 {
-        let [xx, yy, zz, xy, xz, yz] = self.krr;
+    /// A bound of the largest eigenvalue of `M^-1 A` for the body's block `A = [[w I,
+    /// -[wr]x], [[wr]x, tr(wrr) I - wrr]]`, `M` at least `diag(m I, I_min I)`: the largest
+    /// row sum of absolute values of `M^-1/2 A M^-1/2` (Gershgorin).
+    fn largest_eigenvalue(&self, mass: f64, i_min: f64) -> f64 {
+        let [xx, yy, zz, xy, xz, yz] = self.wrr;
         let trace = xx + yy + zz;
         let c = 1.0 / (mass * i_min).sqrt();
-        let a = self.kr.map(f64::abs);
-        // |[kr]x| has rows (0, a_z, a_y), (a_z, 0, a_x), (a_y, a_x, 0) in absolute value.
+        let a = self.wr.map(f64::abs);
+        // |[wr]x| has rows (0, a_z, a_y), (a_z, 0, a_x), (a_y, a_x, 0) in absolute value.
         let coupling = [a[1] + a[2], a[0] + a[2], a[0] + a[1]];
         let rotation = [
             trace - xx + xy.abs() + xz.abs(),
@@ -619,12 +613,22 @@ impl BodySprings {
         ];
         (0..3)
             .map(|i| {
-                let translational = self.k / mass + c * coupling[i];
+                let translational = self.w / mass + c * coupling[i];
                 let rotational = rotation[i] / i_min + c * coupling[i];
                 translational.max(rotational)
             })
             .fold(0.0, f64::max)
     }
+}
+
+/// A rigid body's share of the contact network: the moments of its springs' stiffnesses
+/// and dashpots, each with its coupling factor (each spring and dashpot taken isotropic
+/// with its stiffer stiffness and larger dashpot, which only adds to them).
+#[derive(Clone, Copy, Default)]
+struct BodySprings {
+    stiffness: Moments,
+    damping: Moments,
+    springs: usize,
 }
 
 impl RigidBodies {
@@ -638,48 +642,47 @@ impl RigidBodies {
     /// coordinates `u_c = M^-1/2 g_c`. With `(a + b)(a + b)^T <= 2 (a a^T + b b^T)` the
     /// matrix is at most the block-diagonal one whose block for body `B` is `2 sum_c k_c
     /// u_cB u_cB^T` (a wall does not move: no factor 2), so `omega_max^2` is at most the
-    /// largest eigenvalue of any body's block, bounded by [`BodySprings::omega2`].
-    /// Deformable nodes keep the per-node and element bounds. The spring-dashpot factor
-    /// uses the springs' damping ratio ([`fdem_contact::spring_dashpot_time_step`]).
+    /// largest eigenvalue of any body's block, bounded by [`Moments::largest_eigenvalue`].
+    /// The dashpots `C` the same way give `gamma >= ` every eigenvalue of `M^-1 C`, so a
+    /// mode of frequency `omega` has `zeta omega = u^T C u / 2 <= gamma / 2`, and central
+    /// differences are stable for every mode when `dt <= 2 / (sqrt(omega_max^2 + gamma^2 /
+    /// 4) + gamma / 2)`, the spring-dashpot bound `(2 / omega)(sqrt(1 + zeta^2) - zeta)`
+    /// of each mode at its worst. Deformable nodes keep the per-node and element bounds.
     /// `None` without rigid contacts.
     pub(crate) fn network_bound(
         &self,
         springs: impl Iterator<Item = Spring>,
     ) -> Option<NetworkBound> {
         let mut sums = vec![BodySprings::default(); self.parts.len()];
-        let mut add = |part: usize, point: [f64; 3], k: f64, zeta: f64| {
+        let mut add = |part: usize, point: [f64; 3], factor: f64, spring: &Spring| {
             let c = self.parts[part].state.position;
             let r = [point[0] - c[0], point[1] - c[1], point[2] - c[2]];
-            sums[part].add(r, k, zeta);
+            let s = &mut sums[part];
+            s.stiffness.add(r, factor * spring.stiffness);
+            s.damping.add(r, factor * spring.dashpot);
+            s.springs += 1;
         };
         for spring in springs {
             // A spring between two bodies counts twice in each (the bound's factor 2).
-            let k = match spring.other {
-                Some(_) => 2.0 * spring.stiffness,
-                None => spring.stiffness,
-            };
+            let factor = if spring.other.is_some() { 2.0 } else { 1.0 };
             if let Some(part) = self.part_of(spring.body) {
-                add(part, spring.point, k, spring.damping_ratio);
+                add(part, spring.point, factor, &spring);
             }
             if let Some((body, point)) = spring.other
                 && let Some(part) = self.part_of(body)
             {
-                add(part, point, k, spring.damping_ratio);
+                add(part, point, factor, &spring);
             }
         }
         sums.iter()
             .zip(&self.parts)
             .filter(|(s, _)| s.springs > 0)
             .map(|(s, p)| {
-                let i_min = p
-                    .inertia
-                    .principal
-                    .iter()
-                    .copied()
-                    .fold(f64::INFINITY, f64::min);
-                let omega2 = s.omega2(p.inertia.mass, i_min);
+                let (m, i_min) = (p.inertia.mass, p.inertia.smallest_moment());
+                let omega2 = s.stiffness.largest_eigenvalue(m, i_min);
+                let half_gamma = 0.5 * s.damping.largest_eigenvalue(m, i_min);
                 NetworkBound {
-                    dt: fdem_contact::spring_dashpot_time_step(omega2, 1.0, s.damping_ratio),
+                    dt: 2.0 / ((omega2 + half_gamma * half_gamma).sqrt() + half_gamma),
                     body: p.body,
                     springs: s.springs,
                 }
@@ -829,7 +832,7 @@ mod tests {
                         // 3 stands for a wall; otherwise another body's point.
                         other: (b < 3 && b != a).then(|| (2 * b, point(b))),
                         stiffness: k,
-                        damping_ratio: 0.0,
+                        dashpot: 0.0,
                     }
                 })
                 .collect();
@@ -851,12 +854,37 @@ mod tests {
             point: [0.0, 0.0, -0.5],
             other,
             stiffness: 1.0,
-            damping_ratio: 0.0,
+            dashpot: 0.0,
         };
         assert_eq!(bodies.network_bound([on(0, None)].into_iter()), None);
         let b = bodies
             .network_bound([on(1, None), on(0, Some((1, [0.5, 0.0, 0.0])))].into_iter())
             .expect("a rigid body");
         assert_eq!((b.body, b.springs), (1, 2));
+    }
+
+    /// One spring and dashpot on a wall through the centre: the body moves as one mass on
+    /// one spring-dashpot, and the bound is that pair's (the contact model's formula).
+    #[test]
+    fn one_spring_through_the_centre_gives_the_spring_dashpot_step() {
+        let (m, k, c) = (2.0, 3.0e6, 40.0);
+        let bodies = RigidBodies::new(vec![part(0, m, [0.1; 3], [0.0; 3])]);
+        let spring = Spring {
+            body: 0,
+            point: [0.0; 3],
+            other: None,
+            stiffness: k,
+            dashpot: c,
+        };
+        let b = bodies
+            .network_bound([spring].into_iter())
+            .expect("a rigid body");
+        let zeta = c / (2.0 * (k * m).sqrt());
+        let expected = fdem_contact::spring_dashpot_time_step(k, m, zeta);
+        assert!(
+            (b.dt - expected).abs() <= 1e-12 * expected,
+            "{} vs {expected}",
+            b.dt
+        );
     }
 }
