@@ -69,6 +69,15 @@ impl NodeChunks {
     }
 }
 
+/// Steps between estimates of the rigid bodies' contact network's step
+/// ([`Simulation::rigid_network_step`]).
+pub const NETWORK_INTERVAL: u64 = 100;
+
+/// Lanczos steps of an estimate of the network's largest frequency: on E1's network the
+/// extreme Ritz value of 40 steps agrees with that of 400 to about 1e-5 (docs/MODEL.md
+/// section 12).
+pub const NETWORK_LANCZOS_STEPS: usize = 40;
+
 /// How the time step is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TimeStep {
@@ -179,7 +188,7 @@ pub struct Simulation {
     dt: f64,
     bound: StepBound,
     safety: Option<f64>,
-    /// The contact network's bound that last lowered the step.
+    /// The contact network's step where it sets the step now.
     network: Option<StepBound>,
     guard: Guard,
     initial_energy: f64,
@@ -365,10 +374,12 @@ impl Simulation {
                 c.positions.len()
             )));
         }
-        // A step the contact network lowered is below the model's (which knows only the
-        // contacts it was built with); any other step must be the model's.
+        // A step the contact network set is at most the model's bound times the safety
+        // factor (the model knows only the contacts it was built with); any other step must
+        // be the model's.
+        let largest = self.safety.map_or(0.0, |safety| safety * self.bound.dt);
         let adapts = self.safety.is_some() && !self.rigid.is_empty();
-        let lowered = adapts && c.dt.is_finite() && c.dt > 0.0 && c.dt < self.dt;
+        let lowered = adapts && c.dt.is_finite() && c.dt > 0.0 && c.dt <= largest;
         if !lowered && c.dt.to_bits() != self.dt.to_bits() {
             return Err(mismatch(format!(
                 "step {:e} s saved, {:e} s in the model",
@@ -426,7 +437,7 @@ impl Simulation {
             let safety = self.safety.unwrap_or(1.0);
             self.network = Some(StepBound {
                 dt: c.dt / safety,
-                source: "contact network (the restored run's step)".into(),
+                source: "contact network of the rigid bodies (the restored run's step)".into(),
             });
         }
         Ok(())
@@ -523,53 +534,70 @@ impl Simulation {
         &self.bound
     }
 
-    /// The contact network's bound that last lowered an automatic step
-    /// ([`Simulation::rigid_network_bound`]), if it did.
+    /// The contact network's step where it sets the automatic step
+    /// ([`Simulation::rigid_network_step`]), if it does now.
     pub fn network_bound(&self) -> Option<&StepBound> {
         self.network.as_ref()
     }
 
-    /// With an automatic step and rigid bodies, lowers the step to the safety factor times
-    /// the contact network's bound when that is smaller: springs that act together on one
-    /// rigid body make it stiffer than the bound known before the contacts formed. The step
-    /// never rises again, so a run's step is the smallest its network has asked for; it
-    /// follows from the state, so a resumed run takes the same steps.
+    /// With an automatic step and rigid bodies, sets the step to the safety factor times the
+    /// smaller of the model's bound and the contact network's step: springs that act
+    /// together on one rigid body make it stiffer than the bound known before the contacts
+    /// formed, and the network stiffens and softens as contacts come and go. The network's
+    /// step ([`Simulation::rigid_network_step`]) is estimated every [`NETWORK_INTERVAL`]
+    /// steps (and when the model is built); the step follows from the state and the step
+    /// count, so a resumed run takes the same steps.
     fn follow_network(&mut self) {
         let Some(safety) = self.safety else {
             return;
         };
-        if self.rigid.is_empty() {
+        if self.rigid.is_empty() || !self.step.is_multiple_of(NETWORK_INTERVAL) {
             return;
         }
-        if let Some(b) = self.rigid_network_bound() {
-            let dt = safety * b.dt;
-            if dt < self.dt {
-                self.dt = dt;
+        match self.rigid_network_step() {
+            Some(b) if b.dt < self.bound.dt => {
+                self.dt = safety * b.dt;
                 self.network = Some(b);
             }
+            _ => {
+                self.dt = safety * self.bound.dt;
+                self.network = None;
+            }
         }
+    }
+
+    /// The rigid bodies' stable step under the contact springs of the last evaluation
+    /// (`None` without rigid contacts): `2 / (sqrt(omega^2 + gamma^2 / 4) + gamma / 2)` with
+    /// `omega^2` and `gamma` the largest eigenvalues of the network's mass-weighted
+    /// stiffness and damping, each from [`NETWORK_LANCZOS_STEPS`] Lanczos steps (docs/MODEL.md
+    /// section 12). An estimate, as the particles' elastic bound is (a power iteration):
+    /// the safety factor covers it.
+    pub fn rigid_network_step(&self) -> Option<StepBound> {
+        let springs: Vec<Spring> = self.springs()?.collect();
+        let omega2 = self
+            .rigid
+            .network_frequency(&springs, NETWORK_LANCZOS_STEPS)?;
+        let gamma = self
+            .rigid
+            .network_damping(&springs, NETWORK_LANCZOS_STEPS)
+            .unwrap_or(0.0);
+        let half_gamma = 0.5 * gamma;
+        Some(StepBound {
+            dt: 2.0 / ((omega2 + half_gamma * half_gamma).sqrt() + half_gamma),
+            source: format!(
+                "contact network of the rigid bodies: largest frequency {:.4e} rad/s, damping \
+                 {gamma:.4e} 1/s (Lanczos)",
+                omega2.sqrt()
+            ),
+        })
     }
 
     /// The rigid bodies' stable step under the contact springs of the last evaluation,
     /// each body counting every spring that acts on it (`None` without rigid contacts):
     /// the bound [`Simulation::bound`] cannot know before the contacts form
-    /// (docs/MODEL.md, "Time step").
+    /// (docs/MODEL.md section 12).
     pub fn rigid_network_bound(&self) -> Option<StepBound> {
-        let contact = self.contact.as_ref()?;
-        let springs = contact
-            .model()
-            .contact_springs()
-            .map(|(c, k, dashpot)| Spring {
-                body: c.body as usize,
-                point: c.position,
-                other: match c.counterpart {
-                    Counterpart::Body(b) => Some((b as usize, c.contact_point)),
-                    Counterpart::Wall(_) => None,
-                },
-                stiffness: k,
-                dashpot,
-            });
-        let b = self.rigid.network_bound(springs)?;
+        let b = self.rigid.network_bound(self.springs()?)?;
         Some(StepBound {
             dt: b.dt,
             source: format!(
@@ -577,6 +605,36 @@ impl Simulation {
                 b.body, b.springs
             ),
         })
+    }
+
+    /// An estimate of the rigid bodies' largest frequency (rad/s) under the contact springs
+    /// of the last evaluation, undamped, from `iterations` Lanczos steps: it approaches the
+    /// true value from below where [`Simulation::rigid_network_bound`] bounds it from above
+    /// (a diagnostic of the bound's margin; `None` without rigid contacts).
+    pub fn rigid_network_frequency(&self, iterations: usize) -> Option<f64> {
+        let springs: Vec<Spring> = self.springs()?.collect();
+        let omega2 = self.rigid.network_frequency(&springs, iterations)?;
+        Some(omega2.sqrt())
+    }
+
+    /// The contacts of the last evaluation as springs between bodies.
+    fn springs(&self) -> Option<impl Iterator<Item = Spring> + '_> {
+        let contact = self.contact.as_ref()?;
+        Some(
+            contact
+                .model()
+                .contact_springs()
+                .map(|(c, k, dashpot)| Spring {
+                    body: c.body as usize,
+                    point: c.position,
+                    other: match c.counterpart {
+                        Counterpart::Body(b) => Some((b as usize, c.contact_point)),
+                        Counterpart::Wall(_) => None,
+                    },
+                    stiffness: k,
+                    dashpot,
+                }),
+        )
     }
 
     /// Stability guard settings.
@@ -890,12 +948,14 @@ impl Simulation {
     }
 
     fn unstable(&self, step: u64, time: f64, reason: String) -> SolverError {
+        // The bound that set the step: the contact network's where it lowered it.
+        let bound = self.network.as_ref().unwrap_or(&self.bound);
         SolverError::Unstable {
             step,
             time,
             dt: self.dt,
-            bound: self.bound.dt,
-            bound_source: self.bound.source.clone(),
+            bound: bound.dt,
+            bound_source: bound.source.clone(),
             reason,
         }
     }

