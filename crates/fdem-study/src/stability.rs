@@ -714,7 +714,7 @@ fn stability_markdown(rows: &[MapRow], spec: &MapSpec, command: &str, charts: &[
          membrane's bound is its stiffest element's. Each of these makes the bound smaller than the \
          true limit (conservative), never larger, with one exception: the springs that act \
          together on one rigid body add up, which the model's bound does not count (a run \
-         with an automatic step lowers its step to their bound as contacts form, docs/MODEL.md \
+         with an automatic step follows their network's estimated frequency, docs/MODEL.md \
          section 12; the probes keep the step they were given). Otherwise a failure below \
          the bound would be a bug in the bound, or a failure that is not a step-size \
          instability (penetration under too soft a penalty, tunnelling of a fast \
