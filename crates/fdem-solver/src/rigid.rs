@@ -870,7 +870,8 @@ mod tests {
         let tensor = [[i[0], 0.0, 0.0], [0.0, i[1], 0.0], [0.0, 0.0, i[2]]];
         let inertia = RigidInertia::new(m, tensor).expect("valid inertia");
         let state = RigidState::new(&inertia, x, [0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3]);
-        RigidPart::new(body, 0, Vec::new(), inertia, state)
+        // Node ranges in body order, as a simulation numbers them (empty here).
+        RigidPart::new(body, body, Vec::new(), inertia, state)
     }
 
     /// `[r]x`, the cross-product matrix.
