@@ -499,8 +499,8 @@ impl Simulation {
     }
 
     /// Sets the time step (s) and keeps it: unlike [`Simulation::set_dt`], the rigid
-    /// bodies' contact network no longer lowers it (a probe of the step's stability
-    /// wants the step it asked for).
+    /// bodies' contact network no longer sets it (a probe of the step's stability wants
+    /// the step it asked for).
     ///
     /// # Errors
     /// [`SolverError::InvalidScene`] for a step that is not finite and > 0.
@@ -512,8 +512,8 @@ impl Simulation {
 
     /// Changes the step from the next step on, even above the stable bound (the guard
     /// watches): velocity Verlet holds velocities at whole steps, so a new step needs no
-    /// restart. With an automatic step the rigid bodies' contact network may still lower
-    /// it ([`Simulation::fix_dt`] keeps it).
+    /// restart. With an automatic step and rigid bodies, the contact network's next
+    /// estimate sets it again ([`Simulation::fix_dt`] keeps it).
     ///
     /// # Errors
     /// [`SolverError::InvalidScene`] for a step that is not finite and > 0.
