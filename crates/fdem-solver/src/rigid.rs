@@ -774,43 +774,7 @@ impl RigidBodies {
                 y[6 * j + 3..6 * j + 6].copy_from_slice(ang.as_slice());
             }
         };
-        // Lanczos from a fixed start vector with every component non-zero.
-        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
-        let mut q: Vec<f64> = (0..n)
-            .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
-            .collect();
-        let q_norm = norm(&q);
-        q.iter_mut().for_each(|a| *a /= q_norm);
-        let (mut previous, mut w) = (vec![0.0; n], vec![0.0; n]);
-        let (mut alphas, mut betas) = (Vec::new(), Vec::new());
-        let mut beta = 0.0;
-        for _ in 0..iterations.min(n) {
-            apply(&q, &mut w);
-            let alpha: f64 = q.iter().zip(&w).map(|(a, b)| a * b).sum();
-            for i in 0..n {
-                w[i] -= alpha * q[i] + beta * previous[i];
-            }
-            alphas.push(alpha);
-            beta = norm(&w);
-            if beta <= 1e-12 * alpha.abs().max(f64::MIN_POSITIVE) {
-                break;
-            }
-            betas.push(beta);
-            previous = std::mem::replace(&mut q, w.iter().map(|a| a / beta).collect());
-        }
-        let m = alphas.len();
-        let t = nalgebra::DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
-            0 => alphas[i],
-            1 => betas[i.min(j)],
-            _ => 0.0,
-        });
-        Some(
-            SymmetricEigen::new(t)
-                .eigenvalues
-                .iter()
-                .copied()
-                .fold(0.0, f64::max),
-        )
+        Some(lanczos_largest(n, iterations, apply))
     }
 
     /// The index in `parts` of rigid body `body`, if it is one.
@@ -820,6 +784,48 @@ impl RigidBodies {
             _ => None,
         }
     }
+}
+
+/// The largest Ritz value of `iterations` Lanczos steps (at most `n`) on the symmetric
+/// operator `apply` of dimension `n`, from a fixed start vector with every component
+/// non-zero (so the result depends on the operator alone). It approaches the largest
+/// eigenvalue from below; the extreme Ritz values converge first, so no
+/// re-orthogonalisation is needed for it.
+fn lanczos_largest(n: usize, iterations: usize, apply: impl Fn(&[f64], &mut [f64])) -> f64 {
+    let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let mut q: Vec<f64> = (0..n)
+        .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
+        .collect();
+    let q_norm = norm(&q);
+    q.iter_mut().for_each(|a| *a /= q_norm);
+    let (mut previous, mut w) = (vec![0.0; n], vec![0.0; n]);
+    let (mut alphas, mut betas) = (Vec::new(), Vec::new());
+    let mut beta = 0.0;
+    for _ in 0..iterations.min(n) {
+        apply(&q, &mut w);
+        let alpha: f64 = q.iter().zip(&w).map(|(a, b)| a * b).sum();
+        for i in 0..n {
+            w[i] -= alpha * q[i] + beta * previous[i];
+        }
+        alphas.push(alpha);
+        beta = norm(&w);
+        if beta <= 1e-12 * alpha.abs().max(f64::MIN_POSITIVE) {
+            break;
+        }
+        betas.push(beta);
+        previous = std::mem::replace(&mut q, w.iter().map(|a| a / beta).collect());
+    }
+    let m = alphas.len();
+    let t = nalgebra::DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
+        0 => alphas[i],
+        1 => betas[i.min(j)],
+        _ => 0.0,
+    });
+    SymmetricEigen::new(t)
+        .eigenvalues
+        .iter()
+        .copied()
+        .fold(0.0, f64::max)
 }
 
 /// A pass over one rigid body with its ranges of the node positions, velocities and
