@@ -697,17 +697,19 @@ impl TestModel {
         );
         let x = &self.sim.state().positions;
         let membrane = self.membrane();
-        // Centroids nearer the axis than the membrane comes are inside
-        // (`MembraneForces::clear_radius`): one winding number stands for all of them.
-        let clear = membrane.clear_radius(x, bottom, top);
-        self.sim
+        // Centroids nearer the axis than the membrane comes in their sector and layer are
+        // inside (`ClearRegion::holds`): one winding number stands for all of them. The
+        // others get one each, in parallel (`collect` keeps the particles' order).
+        let clear = membrane.clear_region(x, bottom, top);
+        let particles: Vec<(usize, [f64; 3])> = self
+            .sim
             .particles()
-            .filter(|(_, b)| {
-                let c = b.motion(self.sim.state()).centroid;
-                let near_axis =
-                    clear.is_some_and(|r| c[0].hypot(c[1]) < r && c[2] > bottom && c[2] < top);
-                !(near_axis || membrane.contains(x, bottom, top, c))
-            })
+            .map(|(id, b)| (id, b.motion(self.sim.state()).centroid))
+            .filter(|(_, c)| !clear.as_ref().is_some_and(|r| r.holds(*c)))
+            .collect();
+        particles
+            .into_par_iter()
+            .filter(|(_, c)| !membrane.contains(x, bottom, top, *c))
             .map(|(id, _)| id)
             .collect()
     }

@@ -755,22 +755,42 @@ impl MembraneForces {
         omega / (4.0 * std::f64::consts::PI) > 0.5
     }
 
-    /// A radius inside which every point strictly between the planes `z = bottom` and
-    /// `z = top` is inside the closed surface (m; `None` when the membrane comes that
-    /// close to the axis or does not enclose it): the least distance of the membrane from
-    /// the axis, over its triangles the distance from the origin to the triangle's
-    /// projection on the plane z = 0 (to its nearest edge; 0 when it covers the origin).
-    /// The caps lie in the two planes. A point inside that radius and strictly between the
-    /// planes is joined to the axis by a segment that crosses nothing, so its winding
-    /// number is the axis's, computed once here.
-    pub fn clear_radius(&self, positions: &[[f64; 3]], bottom: f64, top: f64) -> Option<f64> {
-        let r = self
-            .triangles
-            .iter()
-            .map(|t| distance_from_axis(t.map(|i| self.node(positions, i))))
-            .fold(f64::INFINITY, f64::min);
+    /// Where points are surely inside the closed surface without a winding number
+    /// (`None` when the membrane comes to the axis or does not enclose it): per cell of a
+    /// grid of angular sectors and heights between the planes `z = bottom` and `z = top`,
+    /// a clear radius, the least distance from the axis of the membrane triangles that
+    /// reach into the cell (each triangle's distance is that of its projection on the
+    /// plane z = 0, to its nearest edge; 0 when it covers the origin). The grid has the
+    /// membrane's own divisions around and along. See [`ClearRegion::holds`] for why a
+    /// point inside its cell's radius is inside; the axis's own winding number is computed
+    /// once here.
+    pub fn clear_region(&self, positions: &[[f64; 3]], bottom: f64, top: f64) -> Option<ClearRegion> {
+        let mut region = ClearRegion {
+            bottom,
+            top,
+            sectors: self.divisions_around.max(1),
+            layers: (self.n_nodes / self.divisions_around.max(1)).saturating_sub(1).max(1),
+            radius: Vec::new(),
+        };
+        region.radius = vec![f64::INFINITY; region.sectors * region.layers];
+        for t in &self.triangles {
+            let tri = t.map(|i| self.node(positions, i));
+            let r = distance_from_axis(tri);
+            if r.is_nan() || r <= 0.0 {
+                return None;
+            }
+            region.lower(tri, r);
+        }
+        // A cell no triangle reaches into cannot occur while the rings sit on the planes
+        // (every horizontal ray from the axis leaves through the tube); should it, it
+        // proves nothing.
+        for r in &mut region.radius {
+            if r.is_infinite() {
+                *r = 0.0;
+            }
+        }
         let axis = [0.0, 0.0, 0.5 * (bottom + top)];
-        (r.is_finite() && r > 0.0 && self.contains(positions, bottom, top, axis)).then_some(r)
+        self.contains(positions, bottom, top, axis).then_some(region)
     }
 
     /// Largest distance of a membrane node from the z axis (m).
@@ -865,6 +885,82 @@ fn distance_from_axis(tri: [V3; 3]) -> f64 {
             (a[0] + t * e[0]).hypot(a[1] + t * e[1])
         })
         .fold(f64::INFINITY, f64::min)
+}
+
+/// Where points are surely inside the membrane's closed surface
+/// ([`MembraneForces::clear_region`]): a clear radius per cell of angular sectors (equal,
+/// from -pi) and layers (equal, from `bottom` to `top`).
+#[derive(Clone, Debug)]
+pub struct ClearRegion {
+    bottom: f64,
+    top: f64,
+    sectors: usize,
+    layers: usize,
+    /// Per cell (sector-major within a layer), the least distance from the axis of the
+    /// triangles that reach into it (m); infinite where none does.
+    radius: Vec<f64>,
+}
+
+/// Angular padding of a triangle's sector range (rad): far above the round-off of
+/// `atan2`, far below a sector's width.
+const SECTOR_PAD: f64 = 1e-9;
+
+impl ClearRegion {
+    /// Whether `point` is surely inside: strictly between the planes and nearer the axis
+    /// than its cell's clear radius. Then the horizontal segment from the axis to the
+    /// point crosses no triangle: a triangle it crossed would reach into the point's cell
+    /// (the crossing has the point's height and angle) and have a point no farther from
+    /// the axis than the point itself, below the cell's radius. The caps lie in the
+    /// planes, and the axis is inside between them (no triangle covers it, and the axis
+    /// is inside at mid-height), so the point is inside as the axis is.
+    pub fn holds(&self, point: [f64; 3]) -> bool {
+        let [x, y, z] = point;
+        if !(z > self.bottom && z < self.top) {
+            return false;
+        }
+        let layer = self.layer_of(z);
+        let sector = self.sector_of(y.atan2(x));
+        x.hypot(y) < self.radius[layer * self.sectors + sector]
+    }
+
+    fn layer_of(&self, z: f64) -> usize {
+        let f = (z - self.bottom) / (self.top - self.bottom) * self.layers as f64;
+        (f.max(0.0) as usize).min(self.layers - 1)
+    }
+
+    fn sector_of(&self, angle: f64) -> usize {
+        let f = (angle + std::f64::consts::PI) / std::f64::consts::TAU * self.sectors as f64;
+        (f.max(0.0) as usize).min(self.sectors - 1)
+    }
+
+    /// Lowers the radius of every cell triangle `tri` (at distance `r > 0` from the axis,
+    /// so its projection misses the origin and spans less than a half turn) reaches into.
+    fn lower(&mut self, tri: [V3; 3], r: f64) {
+        let zs = tri.map(|p| p[2]);
+        let (z0, z1) = (zs[0].min(zs[1]).min(zs[2]), zs[0].max(zs[1]).max(zs[2]));
+        if z1 < self.bottom || z0 > self.top {
+            return;
+        }
+        let (l0, l1) = (self.layer_of(z0), self.layer_of(z1));
+        // The angles of the corners relative to the first, each within a half turn.
+        let a0 = tri[0][1].atan2(tri[0][0]);
+        let rel = tri.map(|p| {
+            let d = p[1].atan2(p[0]) - a0;
+            d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round()
+        });
+        let lo = a0 + rel[0].min(rel[1]).min(rel[2]) - SECTOR_PAD;
+        let hi = a0 + rel[0].max(rel[1]).max(rel[2]) + SECTOR_PAD;
+        let width = std::f64::consts::TAU / self.sectors as f64;
+        let first = ((lo + std::f64::consts::PI) / width).floor() as i64;
+        let last = ((hi + std::f64::consts::PI) / width).floor() as i64;
+        let n = self.sectors as i64;
+        for layer in l0..=l1 {
+            for s in first..=last.min(first + n - 1) {
+                let cell = layer * self.sectors + s.rem_euclid(n) as usize;
+                self.radius[cell] = self.radius[cell].min(r);
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -1035,35 +1131,36 @@ mod tests {
         assert!(inside([0.0, 0.0, 0.25]) && inside([0.045, 0.0, 0.11]));
         assert!(!inside([0.06, 0.0, 0.25]) && !inside([0.0, -0.07, 0.25]));
         assert!(!inside([0.0, 0.0, 0.41]) && !inside([0.0, 0.0, 0.09]));
-        // The clear radius of the jittered membrane: no membrane point nearer the axis
-        // (checked on the triangles' edges and centroids), and every point inside it
-        // between the planes is inside, as the axis is.
+        // The clear region of the jittered membrane: every point it holds is inside by the
+        // winding number; it holds the points well inside the membrane (a tenth of the
+        // radius in from it) and none outside.
         let clear = mf
-            .clear_radius(&p, b, t)
+            .clear_region(&p, b, t)
             .expect("the membrane wraps the axis");
-        assert!(clear > 0.5 * s.radius && clear < s.radius, "{clear}");
-        for tri in &m.triangles {
-            let [x, y, z] = tri.map(|i| p[i]);
-            for w in [
-                [1.0, 0.0, 0.0],
-                [0.5, 0.5, 0.0],
-                [0.0, 0.5, 0.5],
-                [1.0 / 3.0; 3],
-            ] {
-                let q = [0, 1, 2].map(|k| w[0] * x[k] + w[1] * y[k] + w[2] * z[k]);
-                assert!(q[0].hypot(q[1]) >= clear);
-            }
-        }
-        for k in 0..200 {
-            let (angle, frac) = (0.1 * k as f64, (k % 10) as f64 / 10.0);
-            let r = clear * frac;
+        let (mut held, mut inside_points) = (0, 0);
+        for k in 0..2000 {
+            let (angle, frac) = (0.37 * k as f64, 1.2 * ((k * 7919) % 1000) as f64 / 1000.0);
+            let r = s.radius * frac;
             let x = [
                 r * angle.cos(),
                 r * angle.sin(),
-                b + 0.3 * (k as f64 + 0.5) / 200.0,
+                b + (t - b) * (k as f64 + 0.5) / 2000.0,
             ];
-            assert!(mf.contains(&p, b, t, x), "{x:?}");
+            let inside = mf.contains(&p, b, t, x);
+            if clear.holds(x) {
+                assert!(inside, "{x:?} held but outside");
+                held += 1;
+            }
+            if frac < 0.85 {
+                assert!(clear.holds(x), "{x:?} well inside but not held");
+            }
+            inside_points += inside as usize;
         }
+        // Most inside points are held; only those near the membrane need a winding number.
+        assert!(held > 0 && held <= inside_points, "{held} of {inside_points}");
+        assert!(held as f64 > 0.85 * inside_points as f64, "{held} of {inside_points}");
+        // Beyond the planes nothing is held.
+        assert!(!clear.holds([0.0, 0.0, t + 1e-9]) && !clear.holds([0.0, 0.0, b]));
     }
 
     #[test]
