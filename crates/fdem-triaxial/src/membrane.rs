@@ -764,12 +764,19 @@ impl MembraneForces {
     /// membrane's own divisions around and along. See [`ClearRegion::holds`] for why a
     /// point inside its cell's radius is inside; the axis's own winding number is computed
     /// once here.
-    pub fn clear_region(&self, positions: &[[f64; 3]], bottom: f64, top: f64) -> Option<ClearRegion> {
+    pub fn clear_region(
+        &self,
+        positions: &[[f64; 3]],
+        bottom: f64,
+        top: f64,
+    ) -> Option<ClearRegion> {
         let mut region = ClearRegion {
             bottom,
             top,
             sectors: self.divisions_around.max(1),
-            layers: (self.n_nodes / self.divisions_around.max(1)).saturating_sub(1).max(1),
+            layers: (self.n_nodes / self.divisions_around.max(1))
+                .saturating_sub(1)
+                .max(1),
             radius: Vec::new(),
         };
         region.radius = vec![f64::INFINITY; region.sectors * region.layers];
@@ -790,7 +797,8 @@ impl MembraneForces {
             }
         }
         let axis = [0.0, 0.0, 0.5 * (bottom + top)];
-        self.contains(positions, bottom, top, axis).then_some(region)
+        self.contains(positions, bottom, top, axis)
+            .then_some(region)
     }
 
     /// Largest distance of a membrane node from the z axis (m).
@@ -1157,8 +1165,14 @@ mod tests {
             inside_points += inside as usize;
         }
         // Most inside points are held; only those near the membrane need a winding number.
-        assert!(held > 0 && held <= inside_points, "{held} of {inside_points}");
-        assert!(held as f64 > 0.85 * inside_points as f64, "{held} of {inside_points}");
+        assert!(
+            held > 0 && held <= inside_points,
+            "{held} of {inside_points}"
+        );
+        assert!(
+            held as f64 > 0.85 * inside_points as f64,
+            "{held} of {inside_points}"
+        );
         // Beyond the planes nothing is held.
         assert!(!clear.holds([0.0, 0.0, t + 1e-9]) && !clear.holds([0.0, 0.0, b]));
     }
