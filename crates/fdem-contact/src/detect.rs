@@ -15,6 +15,7 @@ use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle};
 use crate::prefetch::prefetch;
+use crate::rigid_frames::RigidFrames;
 use crate::sheet::{self, Sheets};
 use crate::vec3::{add, norm, scale, sub};
 use crate::wall::wall_distance;
@@ -90,11 +91,16 @@ pub(crate) struct Reach {
     pub(crate) slack: f64,
 }
 
+/// The slack of the plane pre-filter at the depth limit `depth_limit` (m).
+pub(crate) fn plane_slack(depth_limit: f64) -> f64 {
+    PLANE_SLACK * depth_limit
+}
+
 impl Reach {
     fn of(depth_limit: f64) -> Reach {
         Reach {
             depth_limit,
-            slack: PLANE_SLACK * depth_limit,
+            slack: plane_slack(depth_limit),
         }
     }
 
@@ -129,6 +135,9 @@ pub(crate) struct Ctx<'a> {
     /// Whether to check each node against the walls' velocities for tunnelling.
     pub(crate) check_walls: bool,
     pub(crate) sheets: &'a Sheets,
+    /// The rigid bodies' frames, when they stand in for their faces' world planes (then
+    /// `planes` has no plane of this evaluation for those faces).
+    pub(crate) frames: Option<&'a RigidFrames>,
     /// Whether to record the rejections of the stored-energy jump log.
     pub(crate) diagnose: bool,
     /// Whether an evaluation came before this one (its contacts are `previous`).
@@ -202,7 +211,9 @@ impl Ctx<'_> {
     #[inline(always)]
     fn prefetch_planes(&self, k: usize) {
         for c in self.broad.candidates(k) {
-            prefetch(self.planes, c.triangle as usize);
+            if !self.frames.is_some_and(|f| f.has(c.body)) {
+                prefetch(self.planes, c.triangle as usize);
+            }
             for &j in &c.nodes {
                 prefetch(self.positions, j as usize);
             }
@@ -228,13 +239,30 @@ impl Ctx<'_> {
         self.wall_contacts(k, x, v, scratch, cursor)
     }
 
-    /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`.
+    /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`:
+    /// from the world planes, or for a rigid body with a frame from its template's
+    /// (`crate::rigid_frames`; the candidates come grouped by body).
     fn signed_distances(&self, x: [f64; 3], cands: &[Candidate], signed: &mut Vec<f64>) {
         signed.clear();
-        signed.extend(cands.iter().map(|c| {
+        let world = |c: &Candidate| {
             let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
             nx * x[0] + ny * x[1] + nz * x[2] - offset
-        }));
+        };
+        let Some(frames) = self.frames else {
+            signed.extend(cands.iter().map(world));
+            return;
+        };
+        let mut start = 0;
+        while start < cands.len() {
+            let body = cands[start].body;
+            let end = start + cands[start..].iter().take_while(|c| c.body == body).count();
+            let group = &cands[start..end];
+            match frames.view(body, x) {
+                Some(view) => signed.extend(group.iter().map(|c| view.signed_distance(c.triangle))),
+                None => signed.extend(group.iter().map(world)),
+            }
+            start = end;
+        }
     }
 
     /// The contacts of surface node `k` (at `x`, velocity `v`) with the faces of other

@@ -12,6 +12,7 @@ use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion,
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::prefetch::prefetch;
+use crate::rigid_frames::{RigidFrames, RigidPose, RigidTemplate};
 use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
 use crate::{
@@ -129,7 +130,7 @@ pub(crate) fn positive_length(what: &'static str, value: f64) -> Result<f64, Con
 
 /// Unit normal and offset `[n, n . a]` of a face's plane; zeros for a degenerate face
 /// (every node is then at signed distance 0 and reaches the exact tests, which reject it).
-fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
+pub(crate) fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
     let [a, b, c] = face;
     let n = crate::vec3::cross(sub(b, a), sub(c, a));
     let len = norm(n);
@@ -142,23 +143,26 @@ fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
 }
 
 /// The unit normal and plane offset at `positions` of every face marked in `listed` (the
-/// faces the candidate lists may name) into `planes`, indexed by triangle; the others are
-/// left as they were (no candidate reads them). An empty `listed` (before the first build)
-/// computes none.
+/// faces the candidate lists may name) into `planes`, indexed by triangle, but for the
+/// faces of rigid bodies with a frame in `frames` (the narrow phase reads their template's
+/// planes); the others are left as they were (no candidate reads them). An empty `listed`
+/// (before the first build) computes none.
 fn face_planes(
     planes: &mut Vec<[f64; 4]>,
-    triangles: &[[usize; 3]],
+    surface: &ContactSurface,
     positions: &[[f64; 3]],
     listed: &[bool],
+    frames: Option<&RigidFrames>,
 ) {
+    let triangles = &surface.triangles;
     planes.resize(triangles.len(), [0.0; 4]);
     planes
         .par_iter_mut()
         .zip(triangles.par_iter())
-        .zip(listed.par_iter())
+        .zip(listed.par_iter().zip(surface.triangle_body.par_iter()))
         .with_min_len(CHUNK)
-        .for_each(|((plane, tri), &listed)| {
-            if listed {
+        .for_each(|((plane, tri), (&listed, &body))| {
+            if listed && !frames.is_some_and(|f| f.has(body)) {
                 *plane = unit_plane(tri.map(|i| positions[i]));
             }
         });
@@ -462,6 +466,11 @@ pub struct ContactModel {
     build_gradient: Matrix,
     /// The largest distortion `|A - I|` of the mean motion since the last full build.
     largest_distortion: f64,
+    /// The rigid bodies' faces in their templates' frames (`set_rigid_frames`).
+    rigid_frames: Option<RigidFrames>,
+    /// Whether the frames stand in for the world planes in this evaluation
+    /// ([`RigidFrames::usable`]).
+    frames_active: bool,
 }
 
 /// The lightest surface node of each body, then the two lightest bodies: a node's
@@ -649,6 +658,8 @@ impl ContactModel {
             mean: None,
             build_gradient: IDENTITY,
             largest_distortion: 0.0,
+            rigid_frames: None,
+            frames_active: false,
         })
     }
 
@@ -880,6 +891,64 @@ impl ContactModel {
             &self.bound_masses,
             &self.sheets,
         )
+    }
+
+    /// Gives the rigid bodies' faces their templates' frames: `bodies` pairs a body id with
+    /// its template's index in `templates` (the template's faces in the order of the body's
+    /// faces in the contact surface, which must be consecutive), and `poses` (one per
+    /// body) say where each body is at `time`, whose node `positions` they must reproduce.
+    /// From then on the narrow phase's plane filter meets those faces in their template's
+    /// frame whenever [`ContactModel::set_rigid_poses`] gave the poses of the evaluation's
+    /// time; the contacts are the same bit for bit (the `rigid_frames` module has why).
+    ///
+    /// # Errors
+    /// [`ContactError::InconsistentSurface`] for a body whose faces are not its template's
+    /// or not consecutive, a template index out of range, a body given twice, or poses not
+    /// one per body or not finite.
+    pub fn set_rigid_frames(
+        &mut self,
+        templates: &[RigidTemplate],
+        bodies: &[(u32, usize)],
+        (time, poses): (f64, &[RigidPose]),
+        positions: &[[f64; 3]],
+    ) -> Result<(), ContactError> {
+        self.check_length("positions", positions.len())?;
+        self.rigid_frames = Some(RigidFrames::new(
+            &self.surface,
+            positions,
+            templates,
+            bodies,
+            (time, poses),
+        )?);
+        Ok(())
+    }
+
+    /// The rigid bodies' poses at `time`, one per body in the order
+    /// [`ContactModel::set_rigid_frames`] was given them; an evaluation at another time
+    /// uses the world planes.
+    ///
+    /// # Errors
+    /// [`ContactError::LengthMismatch`] for another number of poses; `InconsistentSurface`
+    /// when no frames were set.
+    pub fn set_rigid_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
+        let frames = self
+            .rigid_frames
+            .as_mut()
+            .ok_or(ContactError::InconsistentSurface {
+                what: "rigid poses given before the rigid frames".into(),
+                fix: "call set_rigid_frames first",
+            })?;
+        frames.set_poses(time, poses)
+    }
+
+    /// Whether the last evaluation met the rigid bodies' faces in their templates' frames.
+    pub fn rigid_frames_in_use(&self) -> bool {
+        self.frames_active
+    }
+
+    /// The frames, when they stand in for the world planes in this evaluation.
+    fn active_frames(&self) -> Option<&RigidFrames> {
+        self.rigid_frames.as_ref().filter(|_| self.frames_active)
     }
 
     /// Recomputes [`ContactModel::stable_time_step`] with `masses` (per global node, kg) in
@@ -1269,15 +1338,22 @@ impl ContactModel {
         // the candidate lists name (they depend on the positions alone; a renewal of the
         // lists below computes those of the new lists).
         let expected = self.expected_motion(time);
+        let slack = crate::detect::plane_slack(self.depth_limit);
+        self.frames_active = self
+            .rigid_frames
+            .as_ref()
+            .is_some_and(|f| f.usable(time, slack));
         let mut planes = std::mem::take(&mut self.planes);
+        let frames = self.active_frames();
         let (scan, ()) = rayon::join(
             || self.scan(positions, velocities, expected.as_ref()),
             || {
                 face_planes(
                     &mut planes,
-                    &self.surface.triangles,
+                    &self.surface,
                     positions,
                     self.broad.listed_faces(),
+                    frames,
                 )
             },
         );
@@ -1512,20 +1588,24 @@ impl ContactModel {
     /// added, after a full build every listed face.
     fn renew_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
         let renewal = self.rebuild_if_due(positions, drift);
-        let triangles = &self.surface.triangles;
+        let surface = &self.surface;
+        let frames = self.rigid_frames.as_ref().filter(|_| self.frames_active);
         match renewal {
             Renewal::None => {}
             Renewal::Refresh { .. } => {
                 for &t in self.broad.newly_listed_faces() {
                     let t = t as usize;
-                    self.planes[t] = unit_plane(triangles[t].map(|i| positions[i]));
+                    if !frames.is_some_and(|f| f.has(surface.triangle_body[t])) {
+                        self.planes[t] = unit_plane(surface.triangles[t].map(|i| positions[i]));
+                    }
                 }
             }
             Renewal::Full => face_planes(
                 &mut self.planes,
-                triangles,
+                surface,
                 positions,
                 self.broad.listed_faces(),
+                frames,
             ),
         }
         renewal
@@ -1633,6 +1713,7 @@ impl ContactModel {
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,
             sheets: &self.sheets,
+            frames: self.rigid_frames.as_ref().filter(|_| self.frames_active),
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
         };

@@ -201,6 +201,8 @@ pub struct Simulation {
     damping_dissipated: f64,
     friction_dissipated: f64,
     last_powers: Powers,
+    /// The rigid bodies' poses handed to the contact's frames (scratch).
+    pose_scratch: Vec<fdem_contact::RigidPose>,
 }
 
 /// Mutable access to the node positions and velocities between steps
@@ -246,6 +248,7 @@ impl Simulation {
             damping_dissipated: 0.0,
             friction_dissipated: 0.0,
             last_powers: Powers::default(),
+            pose_scratch: Vec::new(),
         };
         // Finite inputs can still give a state that is not (a rigid body's spin turned
         // into node velocities overflows), and the first output is written from the
@@ -799,6 +802,15 @@ impl Simulation {
     /// their own. The order of the additions into each node's force is fixed, so the sum
     /// does not depend on the threads.
     fn add_forces(&mut self) -> Result<(), SolverError> {
+        if let Some(contact) = self.contact.as_mut()
+            && !self.rigid.is_empty()
+        {
+            // The rigid bodies' poses of this time, for the contact's frames.
+            self.rigid.poses(&mut self.pose_scratch);
+            contact
+                .model_mut()
+                .set_rigid_poses(self.time, &self.pose_scratch)?;
+        }
         let state = &mut self.state;
         let view = NodeView {
             positions: &state.positions,

@@ -11,11 +11,11 @@
 
 use crate::engine::{Assembled, Guard, Parts, Simulation, TimeStep};
 use crate::forces::{Constraint, ElasticForces, ElementInput, ForceContribution, StepBound};
-use crate::rigid::RigidPart;
+use crate::rigid::{RigidPart, TemplateMap};
 use crate::{
     Body, BodyKind, Connectivity, ContactForces, NodeState, RigidInertia, RigidState, SolverError,
 };
-use fdem_contact::{ContactModel, ContactParams, ContactSurface, Wall};
+use fdem_contact::{ContactModel, ContactParams, ContactSurface, RigidTemplate, Wall};
 use fdem_elastic::Material;
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
 use std::marker::PhantomData;
@@ -151,10 +151,40 @@ pub struct ModelBuilder {
     walls: Vec<Wall>,
     contact: Option<ContactSettings>,
     rigid: Vec<RigidPart>,
+    /// The rigid bodies' templates, each once (`RigidPart::template` indexes them).
+    rigid_templates: Templates,
     parts: Parts,
     gravity: [f64; 3],
     time_step: TimeStep,
     guard: Guard,
+}
+
+/// Distinct rigid templates, found again by their content.
+#[derive(Default)]
+struct Templates {
+    list: Vec<RigidTemplate>,
+    /// Indices into `list` by a hash of the template's bits.
+    by_hash: std::collections::HashMap<u64, Vec<usize>>,
+}
+
+impl Templates {
+    /// The index of `template`, added if it is new.
+    fn intern(&mut self, template: RigidTemplate) -> usize {
+        let mut h = fdem_core::hash::Fnv1a::new();
+        for x in template.nodes.iter().flatten() {
+            h.update(&x.to_bits().to_le_bytes());
+        }
+        for i in template.triangles.iter().flatten() {
+            h.update(&(*i as u64).to_le_bytes());
+        }
+        let same = self.by_hash.entry(h.0).or_default();
+        if let Some(&k) = same.iter().find(|&&k| self.list[k] == template) {
+            return k;
+        }
+        same.push(self.list.len());
+        self.list.push(template);
+        self.list.len() - 1
+    }
 }
 
 impl Default for ModelBuilder {
@@ -178,6 +208,7 @@ impl ModelBuilder {
             walls: Vec::new(),
             contact: None,
             rigid: Vec::new(),
+            rigid_templates: Templates::default(),
             parts: Parts {
                 contributions: Vec::new(),
                 constraints: Vec::new(),
@@ -299,7 +330,21 @@ impl ModelBuilder {
             inertia.principal_frame,
             motion.angular_velocity,
         );
-        let part = RigidPart::new(id, first, offsets, inertia, state);
+        let template_id = self.rigid_templates.intern(RigidTemplate {
+            nodes: one
+                .surface_nodes
+                .iter()
+                .map(|&n| template.nodes[n])
+                .collect(),
+            triangles: triangles.clone(),
+        });
+        let mut part = RigidPart::new(id, first, offsets, inertia, state);
+        part.template = Some(TemplateMap::new(
+            template_id,
+            placement,
+            inertia.principal_frame,
+            c,
+        ));
         self.velocities.resize(self.reference.len(), [0.0; 3]);
         let nodes = first..self.reference.len();
         part.place_nodes(
@@ -465,9 +510,9 @@ impl ModelBuilder {
                 settings,
                 self.surface,
                 self.walls,
-                &state.masses,
+                (&state.masses, &state.positions),
                 &sheets,
-                &self.rigid,
+                (&self.rigid, &self.rigid_templates.list),
             )?),
             None if self.walls.is_empty() && sheets.is_empty() => None,
             None => {
@@ -518,9 +563,9 @@ fn contact_stage(
     settings: ContactSettings,
     surface: ContactSurface,
     walls: Vec<Wall>,
-    masses: &[f64],
+    (masses, positions): (&[f64], &[[f64; 3]]),
     sheets: &[u32],
-    rigid: &[RigidPart],
+    (rigid, templates): (&[RigidPart], &[RigidTemplate]),
 ) -> Result<ContactForces, SolverError> {
     let mut model = ContactModel::new(settings.params, surface, walls, masses, settings.margin)?;
     if !rigid.is_empty() {
@@ -530,6 +575,14 @@ fn contact_stage(
             part.effective_masses(&mut bound_masses[part.first..part.first + part.offsets.len()]);
         }
         model.set_bound_masses(&bound_masses)?;
+        // Their faces in their templates' frames (the narrow phase's plane filter).
+        let framed: Vec<&RigidPart> = rigid.iter().filter(|p| p.template.is_some()).collect();
+        let bodies: Vec<(u32, usize)> = framed
+            .iter()
+            .filter_map(|p| Some((p.body as u32, p.template?.template)))
+            .collect();
+        let poses: Vec<_> = framed.iter().filter_map(|p| p.pose()).collect();
+        model.set_rigid_frames(templates, &bodies, (0.0, &poses), positions)?;
     }
     if let Some(depth_limit) = settings.depth_limit {
         model.set_depth_limit(depth_limit)?;

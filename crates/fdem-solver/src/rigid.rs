@@ -302,8 +302,46 @@ pub(crate) struct RigidPart {
     pub(crate) state: RigidState,
     /// Centre of mass at the reference of gravity's work (m).
     pub(crate) reference: [f64; 3],
+    /// Where the body's template sits in its principal frame (for the contact's frames).
+    pub(crate) template: Option<TemplateMap>,
     force: [f64; 3],
     torque: [f64; 3],
+}
+
+/// How a rigid body's template lies in the body's principal frame: offsets `o = shift +
+/// to_offsets t` of the template coordinates `t`, `to_offsets` a rotation times the
+/// placement's scale. With the body's pose `(X, R)` a template point is at `X + R shift +
+/// R to_offsets t`, which the contact model's frames take as `origin + A t`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TemplateMap {
+    /// The template's index among the model's rigid templates.
+    pub(crate) template: usize,
+    to_offsets: Matrix3<f64>,
+    shift: Vector3<f64>,
+    scale: f64,
+}
+
+impl TemplateMap {
+    /// The map of a template placed by `placement` (`x0 = R_p (s t) + T`, fdem-mesh's
+    /// placement) into a body whose centre of mass is `centre` and whose principal frame is
+    /// the unit quaternion `principal_frame`: `o = R_f^T (x0 - centre)`.
+    pub(crate) fn new(
+        template: usize,
+        placement: &fdem_mesh::Placement,
+        principal_frame: [f64; 4],
+        centre: [f64; 3],
+    ) -> TemplateMap {
+        let placed = quaternion(placement.rotation).to_rotation_matrix();
+        let frame = quaternion(principal_frame).to_rotation_matrix();
+        let back = frame.transpose();
+        let t = Vector3::from(placement.translation) - Vector3::from(centre);
+        TemplateMap {
+            template,
+            to_offsets: back * placed.matrix() * placement.scale,
+            shift: back * t,
+            scale: placement.scale,
+        }
+    }
 }
 
 impl RigidPart {
@@ -321,9 +359,25 @@ impl RigidPart {
             inertia,
             reference: state.position,
             state,
+            template: None,
             force: [0.0; 3],
             torque: [0.0; 3],
         }
+    }
+
+    /// The body's pose for the contact model's frames, if it has a template map:
+    /// `origin = X + R shift`, `A = R to_offsets`, given by `A^-1 = A^T / s^2`.
+    pub(crate) fn pose(&self) -> Option<fdem_contact::RigidPose> {
+        let map = self.template.as_ref()?;
+        let r = quaternion(self.state.orientation).to_rotation_matrix();
+        let a = r.matrix() * map.to_offsets;
+        let origin = Vector3::from(self.state.position) + r * map.shift;
+        let inv = a.transpose() / (map.scale * map.scale);
+        Some(fdem_contact::RigidPose {
+            to_template: std::array::from_fn(|i| std::array::from_fn(|j| inv[(i, j)])),
+            origin: array(origin),
+            scale: map.scale,
+        })
     }
 
     /// The body's effective mass at each of its nodes, for the contact bound: a force
@@ -440,6 +494,13 @@ impl RigidBodies {
 
     pub(crate) fn is_empty(&self) -> bool {
         self.parts.is_empty()
+    }
+
+    /// The poses of the bodies with a template map, in body order, into `out` (the
+    /// contact model's frames, `ContactModel::set_rigid_poses`).
+    pub(crate) fn poses(&self, out: &mut Vec<fdem_contact::RigidPose>) {
+        out.clear();
+        out.extend(self.parts.iter().filter_map(RigidPart::pose));
     }
 
     pub(crate) fn iter(&self) -> impl Iterator<Item = &RigidPart> {

@@ -520,6 +520,10 @@ mesh = {{ level = {level} }}
             touching > 0 && apart == 200,
             "{model}: no complete collision"
         );
+        // Rigid faces are met in their template's frame (the plane filter), deformable
+        // ones by their world planes.
+        let framed = sim.contact().unwrap().model().rigid_frames_in_use();
+        assert_eq!(framed, model == "rigid", "{model}");
         (sim.body_motion(0), touching)
     }
 

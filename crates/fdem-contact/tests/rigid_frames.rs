@@ -1,0 +1,274 @@
+//! Rigid bodies' faces met in their template's frame (`ContactModel::set_rigid_frames`):
+//! the contacts and forces are those of the world planes, bit for bit, and the frames
+//! stand aside when their poses are not of the evaluation's time or do not reproduce the
+//! positions.
+
+mod common;
+
+use common::{linear_sphere, model_for, random_rotation, rng};
+use fdem_contact::{ContactModel, ContactParams, RigidPose, RigidTemplate};
+use fdem_mesh::{MeshAssembly, Placement, TetMesh};
+use rand::RngExt;
+
+type Mat = [[f64; 3]; 3];
+
+/// The rotation matrix of the unit quaternion `[w, x, y, z]`.
+fn rotation(q: [f64; 4]) -> Mat {
+    let [w, x, y, z] = q;
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+fn mul(a: Mat, b: Mat) -> Mat {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+fn transpose(a: Mat) -> Mat {
+    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
+}
+
+fn apply(a: Mat, v: [f64; 3]) -> [f64; 3] {
+    a.map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
+}
+
+/// The rotation by `angle` about the unit `axis`.
+fn turn(axis: [f64; 3], angle: f64) -> Mat {
+    let h = 0.5 * angle;
+    rotation([
+        h.cos(),
+        axis[0] * h.sin(),
+        axis[1] * h.sin(),
+        axis[2] * h.sin(),
+    ])
+}
+
+/// The template's surface in the order a placed instance of it has its faces.
+fn template_of(mesh: &TetMesh) -> RigidTemplate {
+    let mut one = MeshAssembly::new();
+    one.push_instance(mesh, &Placement::default()).unwrap();
+    RigidTemplate {
+        nodes: mesh.nodes.clone(),
+        triangles: one.triangles.clone(),
+    }
+}
+
+/// Eight level-1 spheres of diameter 1 cm and scales 0.9 to 1.1 on a cube's corners,
+/// their surfaces overlapping by up to about 0.2 mm, each turning about its own random
+/// axis and swaying along another: node positions and poses at `step`.
+struct Cluster {
+    mesh: TetMesh,
+    placements: Vec<Placement>,
+    spins: Vec<([f64; 3], f64)>,
+    sways: Vec<[f64; 3]>,
+}
+
+impl Cluster {
+    fn new(seed: u64) -> Cluster {
+        let mut r = rng(seed);
+        let mesh = linear_sphere(1, 0.01);
+        let mut placements = Vec::new();
+        for k in 0..8 {
+            let corner = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b| 0.0096 * b as f64);
+            placements.push(Placement {
+                scale: r.random_range(0.99..1.01),
+                rotation: random_rotation(&mut r),
+                translation: corner,
+            });
+        }
+        let spins = (0..8)
+            .map(|_| (common::random_unit(&mut r), r.random_range(-2e-3..2e-3)))
+            .collect();
+        let sways = (0..8)
+            .map(|_| common::scale(common::random_unit(&mut r), 4e-5))
+            .collect();
+        Cluster {
+            mesh,
+            placements,
+            spins,
+            sways,
+        }
+    }
+
+    fn assembly(&self) -> MeshAssembly {
+        let mut a = MeshAssembly::new();
+        for p in &self.placements {
+            a.push_instance(&self.mesh, p).unwrap();
+        }
+        a
+    }
+
+    /// Each body's map `x = origin + A t` at `step`: origin and `A` (a rotation times the
+    /// scale).
+    fn maps(&self, step: usize) -> Vec<([f64; 3], Mat, f64)> {
+        self.placements
+            .iter()
+            .zip(&self.spins)
+            .zip(&self.sways)
+            .map(|((p, &(axis, rate)), &sway)| {
+                let turned = mul(turn(axis, rate * step as f64), rotation(p.rotation));
+                let shift = common::scale(sway, (0.2 * step as f64).sin());
+                let a = turned.map(|row| row.map(|v| v * p.scale));
+                (common::add(p.translation, shift), a, p.scale)
+            })
+            .collect()
+    }
+
+    fn positions(&self, step: usize) -> Vec<[f64; 3]> {
+        let mut x = Vec::new();
+        for (origin, a, _) in self.maps(step) {
+            x.extend(
+                self.mesh
+                    .nodes
+                    .iter()
+                    .map(|&t| common::add(origin, apply(a, t))),
+            );
+        }
+        x
+    }
+
+    fn poses(&self, step: usize) -> Vec<RigidPose> {
+        self.maps(step)
+            .into_iter()
+            .map(|(origin, a, s)| RigidPose {
+                to_template: transpose(a).map(|row| row.map(|v| v / (s * s))),
+                origin,
+                scale: s,
+            })
+            .collect()
+    }
+}
+
+fn models(cluster: &Cluster) -> (ContactModel, ContactModel, MeshAssembly) {
+    let assembly = cluster.assembly();
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let margin = 2e-4;
+    let mut plain = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    plain.set_depth_limit(2e-3).unwrap();
+    let mut framed = plain.clone();
+    let template = template_of(&cluster.mesh);
+    let bodies: Vec<(u32, usize)> = (0..8).map(|b| (b, 0)).collect();
+    framed
+        .set_rigid_frames(
+            &[template],
+            &bodies,
+            (0.0, &cluster.poses(0)),
+            &cluster.positions(0),
+        )
+        .unwrap();
+    (plain, framed, assembly)
+}
+
+#[test]
+fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
+    let cluster = Cluster::new(3);
+    let (mut plain, mut framed, assembly) = models(&cluster);
+    let n = assembly.n_nodes();
+    let mut max_contacts = 0;
+    for step in 0..300 {
+        let (x, t) = (cluster.positions(step), step as f64 * 1e-6);
+        let previous = cluster.positions(step.saturating_sub(1));
+        let v: Vec<[f64; 3]> = x
+            .iter()
+            .zip(&previous)
+            .map(|(a, b)| common::scale(common::sub(*a, *b), 1e6))
+            .collect();
+        framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();
+        let b = framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap();
+        assert!(framed.rigid_frames_in_use() && !plain.rigid_frames_in_use());
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(a.stored_energy.to_bits(), b.stored_energy.to_bits());
+        max_contacts = max_contacts.max(a.contacts);
+    }
+    eprintln!(
+        "up to {max_contacts} contacts, {} builds, {} refreshes",
+        plain.rebuild_count(),
+        plain.refresh_count()
+    );
+    assert!(max_contacts >= 10, "{max_contacts} contacts");
+    assert!(plain.rebuild_count() + plain.refresh_count() > 2);
+}
+
+#[test]
+fn frames_stand_aside_without_poses_of_the_time_or_when_off_the_positions() {
+    let cluster = Cluster::new(4);
+    let (_, mut framed, assembly) = models(&cluster);
+    let n = assembly.n_nodes();
+    let x = cluster.positions(5);
+    let v = vec![[0.0; 3]; n];
+    let mut f = vec![[0.0; 3]; n];
+    // Poses of step 0, positions of step 5 at another time: the world planes serve.
+    framed.add_forces(&x, &v, 5e-6, 1e-6, &mut f).unwrap();
+    assert!(!framed.rigid_frames_in_use());
+    framed.set_rigid_poses(5e-6, &cluster.poses(5)).unwrap();
+    framed.add_forces(&x, &v, 5e-6, 1e-6, &mut f).unwrap();
+    assert!(framed.rigid_frames_in_use());
+    // Poses a micrometre off the positions they were set with: never used.
+    let mut off = cluster.poses(0);
+    off[3].origin[0] += 1e-6;
+    let mut model = models(&cluster).0;
+    let bodies: Vec<(u32, usize)> = (0..8).map(|b| (b, 0)).collect();
+    model
+        .set_rigid_frames(
+            &[template_of(&cluster.mesh)],
+            &bodies,
+            (0.0, &off),
+            &cluster.positions(0),
+        )
+        .unwrap();
+    model
+        .add_forces(&cluster.positions(0), &v, 0.0, 1e-6, &mut f)
+        .unwrap();
+    assert!(!model.rigid_frames_in_use());
+}
+
+#[test]
+fn frames_that_do_not_fit_the_surface_are_refused() {
+    let cluster = Cluster::new(5);
+    let (mut plain, _, _) = models(&cluster);
+    let x = cluster.positions(0);
+    let poses = cluster.poses(0);
+    let template = template_of(&cluster.mesh);
+    let mut short = template.clone();
+    short.triangles.pop();
+    let all: Vec<(u32, usize)> = (0..8).map(|b| (b, 0)).collect();
+    // (templates, bodies with their template, poses given)
+    type Case = (Vec<RigidTemplate>, Vec<(u32, usize)>, usize);
+    let cases: Vec<Case> = vec![
+        (vec![short], all.clone(), 8),
+        (vec![template.clone()], vec![(0, 1)], 1),
+        (vec![template.clone()], vec![(0, 0), (0, 0)], 2),
+        (vec![template.clone()], all.clone(), 7),
+    ];
+    for (templates, bodies, n_poses) in cases {
+        let message = plain
+            .set_rigid_frames(&templates, &bodies, (0.0, &poses[..n_poses]), &x)
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("rigid"), "{message}");
+    }
+    assert!(
+        plain.set_rigid_poses(0.0, &poses).is_err(),
+        "poses before frames"
+    );
+}
