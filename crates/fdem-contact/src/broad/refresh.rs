@@ -266,16 +266,30 @@ impl BroadPhase {
             .map(|&b| b as usize + 1)
             .max()
             .unwrap_or(0);
+        // The drifted nodes' bodies, found in parallel over fixed chunks of nodes.
+        let drifted: Vec<Vec<u32>> = (0..surface.surface_nodes.len().div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|chunk| {
+                let nodes = chunk * CHUNK..((chunk + 1) * CHUNK).min(surface.surface_nodes.len());
+                let mut bodies: Vec<u32> = Vec::new();
+                for k in nodes {
+                    let body = surface.node_body[k];
+                    if bodies.last() != Some(&body)
+                        && drift2(
+                            expected,
+                            positions[surface.surface_nodes[k]],
+                            self.reference[k],
+                        ) > half * half
+                    {
+                        bodies.push(body);
+                    }
+                }
+                bodies
+            })
+            .collect();
         let mut dirty = vec![false; n_bodies];
-        for (k, (&g, &body)) in surface
-            .surface_nodes
-            .iter()
-            .zip(&surface.node_body)
-            .enumerate()
-        {
-            if drift2(expected, positions[g], self.reference[k]) > half * half {
-                dirty[body as usize] = true;
-            }
+        for &body in drifted.iter().flatten() {
+            dirty[body as usize] = true;
         }
         let nodes = surface
             .node_body
