@@ -228,14 +228,7 @@ impl TemplateView<'_> {
 /// Per body id, the range of its faces in `surface` when they are consecutive (`None`
 /// when they are not; an empty range when it has none).
 fn face_ranges(surface: &ContactSurface) -> Vec<Option<std::ops::Range<usize>>> {
-    let n_bodies = surface
-        .triangle_body
-        .iter()
-        .chain(&surface.node_body)
-        .map(|&b| b as usize + 1)
-        .max()
-        .unwrap_or(0);
-    let mut ranges: Vec<Option<std::ops::Range<usize>>> = vec![Some(0..0); n_bodies];
+    let mut ranges: Vec<Option<std::ops::Range<usize>>> = vec![Some(0..0); surface.n_bodies()];
     for (t, &b) in surface.triangle_body.iter().enumerate() {
         let r = &mut ranges[b as usize];
         *r = match r.take() {

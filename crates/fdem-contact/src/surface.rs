@@ -31,6 +31,17 @@ pub struct ContactSurface {
 }
 
 impl ContactSurface {
+    /// One more than the largest body id a surface node or face names (0 for an empty
+    /// surface): the length of a per-body table.
+    pub fn n_bodies(&self) -> usize {
+        self.node_body
+            .iter()
+            .chain(&self.triangle_body)
+            .map(|&b| b as usize + 1)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// The surface of every body of a mesh assembly (triangles, surface nodes and control
     /// areas as placed, node owners from the body ranges).
     ///

@@ -7,32 +7,11 @@ mod common;
 
 use common::{linear_sphere, model_for, random_rotation, rng};
 use fdem_contact::{ContactModel, ContactParams, RigidPose, RigidTemplate};
+use fdem_core::geometry::rotation_matrix;
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
 use rand::RngExt;
 
 type Mat = [[f64; 3]; 3];
-
-/// The rotation matrix of the unit quaternion `[w, x, y, z]`.
-fn rotation(q: [f64; 4]) -> Mat {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
 
 fn mul(a: Mat, b: Mat) -> Mat {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
@@ -49,7 +28,7 @@ fn apply(a: Mat, v: [f64; 3]) -> [f64; 3] {
 /// The rotation by `angle` about the unit `axis`.
 fn turn(axis: [f64; 3], angle: f64) -> Mat {
     let h = 0.5 * angle;
-    rotation([
+    rotation_matrix([
         h.cos(),
         axis[0] * h.sin(),
         axis[1] * h.sin(),
@@ -120,7 +99,7 @@ impl Cluster {
             .zip(&self.spins)
             .zip(&self.sways)
             .map(|((p, &(axis, rate)), &sway)| {
-                let turned = mul(turn(axis, rate * step as f64), rotation(p.rotation));
+                let turned = mul(turn(axis, rate * step as f64), rotation_matrix(p.rotation));
                 let shift = common::scale(sway, (0.2 * step as f64).sin());
                 let a = turned.map(|row| row.map(|v| v * p.scale));
                 (common::add(p.translation, shift), a, p.scale)

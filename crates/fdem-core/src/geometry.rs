@@ -116,12 +116,53 @@ pub fn dihedral_angle(p: [f64; 3], q: [f64; 3], r: [f64; 3], s: [f64; 3]) -> f64
     c.clamp(-1.0, 1.0).acos()
 }
 
+/// The rotation matrix (rows) of the quaternion `q / |q|`, `q = [w, x, y, z]`.
+pub fn rotation_matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     const A: [f64; 3] = [1.0, -2.0, 0.5];
     const B: [f64; 3] = [0.25, 3.0, -4.0];
+
+    #[test]
+    fn rotation_matrix_turns_about_the_quaternion_axis() {
+        // A quarter turn about z (unnormalised on purpose) takes x to y.
+        let h = std::f64::consts::FRAC_PI_4;
+        let r = rotation_matrix([2.0 * h.cos(), 0.0, 0.0, 2.0 * h.sin()]);
+        let x = [r[0][0], r[1][0], r[2][0]];
+        assert!(distance(x, [0.0, 1.0, 0.0]) < 1e-15, "{x:?}");
+        // Any quaternion gives an orthonormal matrix of determinant 1.
+        let rows = rotation_matrix([0.3, -0.5, 0.7, 0.1]);
+        for (i, a) in rows.iter().enumerate() {
+            for (j, b) in rows.iter().enumerate() {
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((dot(*a, *b) - want).abs() < 1e-15);
+            }
+        }
+        assert!((dot(cross(rows[0], rows[1]), rows[2]) - 1.0).abs() < 1e-15);
+    }
 
     #[test]
     fn vector_arithmetic() {

@@ -259,13 +259,7 @@ impl BroadPhase {
         half: f64,
         expected: Option<&Expected>,
     ) -> (Vec<bool>, usize) {
-        let n_bodies = surface
-            .node_body
-            .iter()
-            .chain(&surface.triangle_body)
-            .map(|&b| b as usize + 1)
-            .max()
-            .unwrap_or(0);
+        let n_bodies = surface.n_bodies();
         // The drifted nodes' bodies, found in parallel over fixed chunks of nodes.
         let drifted: Vec<Vec<u32>> = (0..surface.surface_nodes.len().div_ceil(CHUNK))
             .into_par_iter()

@@ -167,25 +167,7 @@ pub fn rotation(axis: [f64; 3], angle: f64) -> Mat3 {
 
 /// Rotation of the unit quaternion `q / |q|` (w, x, y, z).
 pub fn quat_rotation(q: [f64; 4]) -> Mat3 {
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
+    fdem_core::geometry::rotation_matrix(q)
 }
 
 pub fn matvec(m: &Mat3, v: [f64; 3]) -> [f64; 3] {
