@@ -380,8 +380,11 @@ impl Ctx<'_> {
         let counterpart = Counterpart::Body(group.body);
         let (reach, _) = self.reach(counterpart);
         let limit2 = self.depth_limit * self.depth_limit * (1.0 + PLANE_SLACK);
+        // The plane distance bounds the face distance from below: skip the faces beyond
+        // the limit by more than the filter's slack (an exact test decides the rest).
+        let plane_reach = limit2.sqrt() + plane_slack(self.depth_limit);
         for (c, &s) in group.cands.iter().zip(group.signed) {
-            if s * s > limit2 {
+            if s.abs() > plane_reach {
                 continue;
             }
             let face = c.nodes.map(|j| self.positions[j as usize]);

@@ -168,6 +168,14 @@ fn face_planes(
         });
 }
 
+/// The error for a body declared both a sheet and a rigid body with a frame.
+fn framed_sheet(body: u32) -> ContactError {
+    ContactError::InconsistentSurface {
+        what: format!("body {body} is given as a sheet and as a rigid body with a frame"),
+        fix: "declare a body either a sheet or a rigid body, not both",
+    }
+}
+
 /// Refuses a time step `dt` that is not finite and > 0 and a non-finite `time`.
 fn check_step(time: f64, dt: f64) -> Result<(), ContactError> {
     if !(dt.is_finite() && dt > 0.0) {
@@ -707,6 +715,12 @@ impl ContactModel {
         bodies: &[u32],
         fold_depth: f64,
     ) -> Result<(), ContactError> {
+        if let Some(&b) = bodies
+            .iter()
+            .find(|&&b| self.rigid_frames.as_ref().is_some_and(|f| f.has(b)))
+        {
+            return Err(framed_sheet(b));
+        }
         self.sheets.declare(bodies, fold_depth)
     }
 
@@ -913,6 +927,10 @@ impl ContactModel {
         positions: &[[f64; 3]],
     ) -> Result<(), ContactError> {
         self.check_length("positions", positions.len())?;
+        // The sheet rules test signs without slack: a sheet is never met in a frame.
+        if let Some(&(b, _)) = bodies.iter().find(|(b, _)| self.sheets.is_sheet(*b)) {
+            return Err(framed_sheet(b));
+        }
         self.rigid_frames = Some(RigidFrames::new(
             &self.surface,
             positions,

@@ -47,6 +47,24 @@ pub struct RigidPose {
 }
 
 impl RigidPose {
+    /// Whether `to_template` times `scale` is a rotation (orthonormal rows to 1e-9, right
+    /// handed) and `scale` finite and positive: then a distance in template units times
+    /// the scale is the world distance.
+    pub fn is_scaled_rotation(&self) -> bool {
+        let s = self.scale;
+        if !(s.is_finite() && s > 0.0) {
+            return false;
+        }
+        let r = self.to_template.map(|row| row.map(|v| v * s));
+        let orthonormal = (0..3).all(|i| {
+            (0..3).all(|j| {
+                let want = if i == j { 1.0 } else { 0.0 };
+                (dot(r[i], r[j]) - want).abs() <= 1e-9
+            })
+        });
+        orthonormal && dot(crate::vec3::cross(r[0], r[1]), r[2]) > 0.0
+    }
+
     /// Template coordinates of the world point `x`.
     #[inline(always)]
     pub fn template_point(&self, x: [f64; 3]) -> [f64; 3] {
@@ -107,6 +125,17 @@ impl RigidFrames {
                 bodies.len()
             )));
         }
+        for (k, t) in templates.iter().enumerate() {
+            let bad_node = t.nodes.iter().flatten().any(|v| !v.is_finite());
+            let bad_index = t.triangles.iter().flatten().any(|&i| i >= t.nodes.len());
+            if bad_node || bad_index {
+                return Err(invalid(format!(
+                    "rigid template {k} has a node that is not finite or a face naming a node \
+                     it does not have ({} nodes)",
+                    t.nodes.len()
+                )));
+            }
+        }
         let planes: Vec<Vec<[f64; 4]>> = templates
             .iter()
             .map(|t| {
@@ -119,7 +148,7 @@ impl RigidFrames {
         let ranges = face_ranges(surface);
         let mut slot = vec![NO_FRAME; ranges.len()];
         let mut frame_bodies = Vec::with_capacity(bodies.len());
-        let mut mismatch: f64 = 0.0;
+        let (mut mismatch, mut finite): (f64, bool) = (0.0, true);
         for (k, (&(body, template), pose)) in bodies.iter().zip(poses).enumerate() {
             let tpl = templates.get(template).ok_or_else(|| {
                 invalid(format!(
@@ -138,7 +167,9 @@ impl RigidFrames {
             for (t, local) in faces.clone().zip(&tpl.triangles) {
                 for (&g, &i) in surface.triangles[t].iter().zip(local) {
                     let u = pose.template_point(positions[g]);
-                    mismatch = mismatch.max(pose.scale * norm(sub(u, tpl.nodes[i])));
+                    let d = pose.scale * norm(sub(u, tpl.nodes[i]));
+                    finite &= d.is_finite();
+                    mismatch = mismatch.max(d);
                 }
             }
             slot[body as usize] = k as u32;
@@ -147,8 +178,11 @@ impl RigidFrames {
                 first_triangle: faces.start as u32,
             });
         }
-        if !mismatch.is_finite() {
-            return Err(invalid("a rigid pose or template is not finite".into()));
+        if !finite || !poses.iter().all(RigidPose::is_scaled_rotation) {
+            return Err(invalid(
+                "a rigid pose is not finite, or not a rotation divided by its positive scale"
+                    .into(),
+            ));
         }
         Ok(RigidFrames {
             planes,
@@ -170,6 +204,7 @@ impl RigidFrames {
                 reason: "one pose per rigid body given to set_rigid_frames",
             });
         }
+        debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
         self.poses.copy_from_slice(poses);
         self.time = Some(time);
         Ok(())

@@ -250,4 +250,38 @@ fn frames_that_do_not_fit_the_surface_are_refused() {
         plain.set_rigid_poses(0.0, &poses).is_err(),
         "poses before frames"
     );
+    // A face naming a node the template does not have, a pose that is not a number, a
+    // scale that is not positive, a map that is not a rotation: refused, nothing panics.
+    let mut beyond = template.clone();
+    beyond.triangles[0][1] = beyond.nodes.len();
+    let mut nan = poses.clone();
+    nan[2].origin[1] = f64::NAN;
+    let mut flat = poses.clone();
+    flat[5].scale = 0.0;
+    let mut stretched = poses.clone();
+    stretched[1].to_template[0] = stretched[1].to_template[0].map(|v| 1.01 * v);
+    for (templates, poses) in [
+        (vec![beyond], poses.clone()),
+        (vec![template.clone()], nan),
+        (vec![template.clone()], flat),
+        (vec![template.clone()], stretched),
+    ] {
+        assert!(
+            plain
+                .set_rigid_frames(&templates, &all, (0.0, &poses), &x)
+                .is_err()
+        );
+    }
+    // A body is a sheet or a rigid body with a frame, never both, in either order.
+    let mut sheet_first = plain.clone();
+    sheet_first.set_sheet_bodies(&[2], 1e-4).unwrap();
+    let message = sheet_first
+        .set_rigid_frames(std::slice::from_ref(&template), &all, (0.0, &poses), &x)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("sheet"), "{message}");
+    plain
+        .set_rigid_frames(&[template], &all, (0.0, &poses), &x)
+        .unwrap();
+    assert!(plain.set_sheet_bodies(&[2], 1e-4).is_err());
 }

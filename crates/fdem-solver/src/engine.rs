@@ -203,6 +203,9 @@ pub struct Simulation {
     last_powers: Powers,
     /// The rigid bodies' poses handed to the contact's frames (scratch).
     pose_scratch: Vec<fdem_contact::RigidPose>,
+    /// Whether the nodes were open for editing since the last force evaluation
+    /// ([`Simulation::nodes_mut`]).
+    rigid_nodes_edited: bool,
 }
 
 /// Mutable access to the node positions and velocities between steps
@@ -249,6 +252,7 @@ impl Simulation {
             friction_dissipated: 0.0,
             last_powers: Powers::default(),
             pose_scratch: Vec::new(),
+            rigid_nodes_edited: false,
         };
         // Finite inputs can still give a state that is not (a rigid body's spin turned
         // into node velocities overflows), and the first output is written from the
@@ -301,8 +305,9 @@ impl Simulation {
     /// seating nodes on a platen). The forces are re-evaluated at the next step; call
     /// [`Simulation::rebase_energy`] to re-evaluate them now and measure the energy
     /// balance from the edited state. Nodes of rigid bodies follow their body's pose: an
-    /// edit of them is overwritten at the next step.
+    /// edit of them is overwritten at the next step or force evaluation.
     pub fn nodes_mut(&mut self) -> NodesMut<'_> {
+        self.rigid_nodes_edited = !self.rigid.is_empty();
         NodesMut {
             positions: &mut self.state.positions,
             velocities: &mut self.state.velocities,
@@ -788,6 +793,12 @@ impl Simulation {
 
     /// The forces at the current state: zero them, then [`Simulation::add_forces`].
     fn compute_forces(&mut self) -> Result<(), SolverError> {
+        if std::mem::take(&mut self.rigid_nodes_edited) {
+            // The nodes were open for editing: rigid bodies' nodes follow their poses (a
+            // step's kick and drift places them anyway).
+            let s = &mut self.state;
+            self.rigid.place_all(&mut s.positions, &mut s.velocities);
+        }
         self.state
             .forces
             .par_chunks_mut(NODE_CHUNK)
@@ -805,7 +816,8 @@ impl Simulation {
         if let Some(contact) = self.contact.as_mut()
             && !self.rigid.is_empty()
         {
-            // The rigid bodies' poses of this time, for the contact's frames.
+            // The rigid bodies' poses of this time, for the contact's frames (which the
+            // rigid nodes reproduce).
             self.rigid.poses(&mut self.pose_scratch);
             contact
                 .model_mut()
@@ -878,6 +890,7 @@ impl Simulation {
             dt,
             [&mut s.positions, &mut s.velocities, &mut s.forces],
         );
+        self.rigid_nodes_edited = false;
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.add_forces() {

@@ -496,6 +496,14 @@ impl RigidBodies {
         self.parts.is_empty()
     }
 
+    /// Places every body's nodes in `x`, `v` from its pose (undoing edits of them).
+    pub(crate) fn place_all(&self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
+        for p in &self.parts {
+            let r = p.nodes();
+            p.place_nodes(&mut x[r.clone()], &mut v[r]);
+        }
+    }
+
     /// The poses of the bodies with a template map, in body order, into `out` (the
     /// contact model's frames, `ContactModel::set_rigid_poses`).
     pub(crate) fn poses(&self, out: &mut Vec<fdem_contact::RigidPose>) {

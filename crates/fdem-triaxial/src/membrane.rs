@@ -920,7 +920,8 @@ impl ClearRegion {
     /// (the crossing has the point's height and angle) and have a point no farther from
     /// the axis than the point itself, below the cell's radius. The caps lie in the
     /// planes, and the axis is inside between them (no triangle covers it, and the axis
-    /// is inside at mid-height), so the point is inside as the axis is.
+    /// is inside at mid-height), so the point is inside as the axis is. This needs the
+    /// surface closed: the rings on the planes, as the test holds them.
     pub fn holds(&self, point: [f64; 3]) -> bool {
         let [x, y, z] = point;
         if !(z > self.bottom && z < self.top) {
