@@ -168,6 +168,12 @@ fn face_planes(
         });
 }
 
+/// The frames, when they stand in for the world planes in this evaluation (`active`). A
+/// function of the two fields, not of the model, so that it borrows only them.
+fn active_frames(frames: &Option<RigidFrames>, active: bool) -> Option<&RigidFrames> {
+    frames.as_ref().filter(|_| active)
+}
+
 /// The error for a body declared both a sheet and a rigid body with a frame.
 fn framed_sheet(body: u32) -> ContactError {
     ContactError::InconsistentSurface {
@@ -964,11 +970,6 @@ impl ContactModel {
         self.frames_active
     }
 
-    /// The frames, when they stand in for the world planes in this evaluation.
-    fn active_frames(&self) -> Option<&RigidFrames> {
-        self.rigid_frames.as_ref().filter(|_| self.frames_active)
-    }
-
     /// Recomputes [`ContactModel::stable_time_step`] with `masses` (per global node, kg) in
     /// place of the lumped masses: for a node of a rigid body, the body's effective mass
     /// at that node. The dashpots keep the lumped masses (eq 3).
@@ -1362,7 +1363,7 @@ impl ContactModel {
             .as_ref()
             .is_some_and(|f| f.usable(time, slack));
         let mut planes = std::mem::take(&mut self.planes);
-        let frames = self.active_frames();
+        let frames = active_frames(&self.rigid_frames, self.frames_active);
         let (scan, ()) = rayon::join(
             || self.scan(positions, velocities, expected.as_ref()),
             || {
@@ -1607,7 +1608,7 @@ impl ContactModel {
     fn renew_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
         let renewal = self.rebuild_if_due(positions, drift);
         let surface = &self.surface;
-        let frames = self.rigid_frames.as_ref().filter(|_| self.frames_active);
+        let frames = active_frames(&self.rigid_frames, self.frames_active);
         match renewal {
             Renewal::None => {}
             Renewal::Refresh { .. } => {
@@ -1731,7 +1732,7 @@ impl ContactModel {
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,
             sheets: &self.sheets,
-            frames: self.rigid_frames.as_ref().filter(|_| self.frames_active),
+            frames: active_frames(&self.rigid_frames, self.frames_active),
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
         };
