@@ -576,12 +576,11 @@ fn contact_stage(
         }
         model.set_bound_masses(&bound_masses)?;
         // Their faces in their templates' frames (the narrow phase's plane filter).
-        let framed: Vec<&RigidPart> = rigid.iter().filter(|p| p.template.is_some()).collect();
-        let bodies: Vec<(u32, usize)> = framed
+        let bodies: Vec<(u32, usize)> = rigid
             .iter()
             .filter_map(|p| Some((p.body as u32, p.template?.template)))
             .collect();
-        let poses: Vec<_> = framed.iter().filter_map(|p| p.pose()).collect();
+        let poses: Vec<_> = rigid.iter().filter_map(RigidPart::pose).collect();
         model.set_rigid_frames(templates, &bodies, (0.0, &poses), positions)?;
     }
     if let Some(depth_limit) = settings.depth_limit {
