@@ -507,8 +507,16 @@ impl RigidBodies {
     /// The poses of the bodies with a template map, in body order, into `out` (the
     /// contact model's frames, `ContactModel::set_rigid_poses`).
     pub(crate) fn poses(&self, out: &mut Vec<fdem_contact::RigidPose>) {
+        use rayon::prelude::*;
         out.clear();
-        out.extend(self.parts.iter().filter_map(RigidPart::pose));
+        // In parallel, as the step's other passes over the bodies (`par_extend` keeps
+        // the order).
+        out.par_extend(
+            self.parts
+                .par_iter()
+                .with_min_len(SERIAL_BODIES)
+                .filter_map(RigidPart::pose),
+        );
     }
 
     pub(crate) fn iter(&self) -> impl Iterator<Item = &RigidPart> {
@@ -540,9 +548,8 @@ impl RigidBodies {
         }
         for (p, s) in self.parts.iter_mut().zip(states) {
             p.state = *s;
-            let r = p.first..p.first + p.offsets.len();
-            p.place_nodes(&mut x[r.clone()], &mut v[r]);
         }
+        self.place_all(x, v);
         Ok(())
     }
 
