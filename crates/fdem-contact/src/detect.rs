@@ -46,6 +46,8 @@ pub(crate) struct ChunkScratch {
     pub(crate) contacts: Vec<NodeContact>,
     /// Signed distances of the current node to its candidates' planes.
     signed: Vec<f64>,
+    /// Per candidate of the current node, whether its template screened the foot out.
+    outside: Vec<bool>,
     pub(crate) sums: Sums,
     pub(crate) error: Option<ContactError>,
     /// Why (node, body) pairs with candidates got no contact; filled only while the
@@ -73,6 +75,10 @@ pub(crate) struct FaceGroup<'a> {
     pub(crate) cands: &'a [Candidate],
     /// The node's signed distances to their planes (positive in front).
     pub(crate) signed: &'a [f64],
+    /// Per candidate, whether its foot lies clearly outside the face (screened in a rigid
+    /// body's template frame, `crate::rigid_frames`; `false` where not screened): no exact
+    /// test on the face can accept the node then.
+    pub(crate) outside: &'a [bool],
     /// Positions of all nodes (m).
     pub(crate) positions: &'a [[f64; 3]],
     pub(crate) reach: Reach,
@@ -232,24 +238,36 @@ impl Ctx<'_> {
         let v = self.velocities[node];
         let cands = self.broad.candidates(k);
         let mut signed = std::mem::take(&mut scratch.signed);
-        self.signed_distances(x, cands, &mut signed);
-        let faces = self.body_contacts(k, x, v, cands, &signed, scratch, cursor);
+        let mut outside = std::mem::take(&mut scratch.outside);
+        self.signed_distances(x, cands, &mut signed, &mut outside);
+        let faces = self.body_contacts(k, x, v, cands, (&signed, &outside), scratch, cursor);
         scratch.signed = signed;
+        scratch.outside = outside;
         faces?;
         self.wall_contacts(k, x, v, scratch, cursor)
     }
 
-    /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`:
-    /// from the world planes, or for a rigid body with a frame from its template's
-    /// (`crate::rigid_frames`; the candidates come grouped by body).
-    fn signed_distances(&self, x: [f64; 3], cands: &[Candidate], signed: &mut Vec<f64>) {
+    /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`,
+    /// and into `outside` whether a candidate's foot was screened out: from the world
+    /// planes (nothing screened), or for a rigid body with a frame from its template's
+    /// planes and barycentric maps (`crate::rigid_frames`; the candidates come grouped by
+    /// body).
+    fn signed_distances(
+        &self,
+        x: [f64; 3],
+        cands: &[Candidate],
+        signed: &mut Vec<f64>,
+        outside: &mut Vec<bool>,
+    ) {
         signed.clear();
+        outside.clear();
         let world = |c: &Candidate| {
             let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
             nx * x[0] + ny * x[1] + nz * x[2] - offset
         };
         let Some(frames) = self.frames else {
             signed.extend(cands.iter().map(world));
+            outside.resize(cands.len(), false);
             return;
         };
         let mut start = 0;
@@ -258,8 +276,15 @@ impl Ctx<'_> {
             let end = start + cands[start..].iter().take_while(|c| c.body == body).count();
             let group = &cands[start..end];
             match frames.view(body, x) {
-                Some(view) => signed.extend(group.iter().map(|c| view.signed_distance(c.triangle))),
-                None => signed.extend(group.iter().map(world)),
+                Some(view) => {
+                    signed.extend(group.iter().map(|c| view.signed_distance(c.triangle)));
+                    let screen = |c: &Candidate| view.foot_clearly_outside(c.triangle);
+                    outside.extend(group.iter().map(screen));
+                }
+                None => {
+                    signed.extend(group.iter().map(world));
+                    outside.resize(end, false);
+                }
             }
             start = end;
         }
@@ -275,7 +300,7 @@ impl Ctx<'_> {
         x: [f64; 3],
         v: [f64; 3],
         cands: &[Candidate],
-        signed: &[f64],
+        (signed, outside): (&[f64], &[bool]),
         scratch: &mut ChunkScratch,
         cursor: &mut usize,
     ) -> Result<(), ContactError> {
@@ -289,6 +314,7 @@ impl Ctx<'_> {
                 body,
                 cands: &cands[start..end],
                 signed: &signed[start..end],
+                outside: &outside[start..end],
                 positions: self.positions,
                 reach,
             };

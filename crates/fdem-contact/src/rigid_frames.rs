@@ -10,17 +10,29 @@
 //! where the world planes are rewritten every step and gathered with a cache miss per
 //! candidate.
 //!
-//! The filter's decisions do not change: the two distances differ by round-off (of the
+//! The same frame screens the foot of the perpendicular: the barycentric coordinates of
+//! the foot are affine functions of the node's position, unchanged by a rotation, a
+//! uniform scale and a shift, so the template face gives them as `w_b = g_b . (u - a)`,
+//! `w_c = g_c . (u - a)`, `w_a = 1 - w_b - w_c` with gradients `g_b`, `g_c` computed once per
+//! template face. A candidate whose foot lies outside the face by more than
+//! [`FOOT_BAND`] (in those coordinates) cannot pass the exact projection, whose tolerance
+//! is `BARYCENTRIC_TOLERANCE`, far inside that band; the narrow phase then skips its
+//! world positions altogether (on a convex particle most candidates lie behind their
+//! face's plane, so the plane alone passes most of them on to the projection).
+//!
+//! The filters' decisions do not change: the two distances differ by round-off (of the
 //! order of 1e-16 of the coordinates), and the filter keeps every face within its slack
 //! of its reach (`PLANE_SLACK` of the depth limit, orders of magnitude above that), after
 //! which exact tests on the world positions decide every contact. So contacts and forces
 //! are the same bit for bit. The maps' agreement with the node positions is measured when
 //! they are set ([`RigidFrames::new`]), and the frames stand aside (the world planes
-//! serve) in an evaluation whose poses are not of its time or whose slack is not far
-//! above that disagreement.
+//! serve) in an evaluation whose poses are not of its time or whose slacks are not far
+//! above that disagreement (in metres for the planes, in barycentric units, through the
+//! largest gradient of a template's weights, for the feet).
 
 use crate::model::unit_plane;
-use crate::vec3::{dot, norm, sub};
+use crate::narrow::BARYCENTRIC_TOLERANCE;
+use crate::vec3::{cross, dot, norm, norm2, scale, sub};
 use crate::{ContactError, ContactSurface};
 
 /// The surface of a rigid body's template: its nodes in template coordinates, and its
@@ -90,6 +102,8 @@ const NO_FRAME: u32 = u32::MAX;
 pub(crate) struct RigidFrames {
     /// Per template, its faces' planes `[n, n . a]` (unit normal, template coordinates).
     planes: Vec<Vec<[f64; 4]>>,
+    /// Per template, its faces' barycentric maps.
+    feet: Vec<Vec<FootMap>>,
     /// Per body id, its index in `bodies` (`NO_FRAME`: not a rigid body with a frame).
     slot: Vec<u32>,
     bodies: Vec<FrameBody>,
@@ -99,6 +113,50 @@ pub(crate) struct RigidFrames {
     /// The largest distance between a face corner's world position and where its pose
     /// puts the template's node, when the frames were set (m).
     mismatch: f64,
+    /// That disagreement's largest effect on a foot's barycentric coordinates: per body,
+    /// its mismatch times its template's largest weight gradient over its scale.
+    foot_mismatch: f64,
+}
+
+/// A template face's barycentric coordinates as affine maps of template coordinates:
+/// `w_b = g_b . (u - a)`, `w_c = g_c . (u - a)`, `w_a = 1 - w_b - w_c`.
+#[derive(Clone, Copy, Debug)]
+struct FootMap {
+    a: [f64; 3],
+    g_b: [f64; 3],
+    g_c: [f64; 3],
+}
+
+impl FootMap {
+    /// The map of the face `[a, b, c]` (`None` for a degenerate face): with the face's
+    /// normal `N = (b - a) x (c - a)`, `g_b = ((c - a) x N) / |N|^2` and
+    /// `g_c = (N x (b - a)) / |N|^2` (the triple products of `narrow::project_hand`).
+    fn of([a, b, c]: [[f64; 3]; 3]) -> Option<FootMap> {
+        let (e1, e2) = (sub(b, a), sub(c, a));
+        let n = cross(e1, e2);
+        let nn = norm2(n);
+        (nn > 0.0 && nn.is_finite()).then(|| FootMap {
+            a,
+            g_b: scale(cross(e2, n), 1.0 / nn),
+            g_c: scale(cross(n, e1), 1.0 / nn),
+        })
+    }
+
+    /// The largest change of a weight per unit move of the node (template units^-1).
+    fn gradient(&self) -> f64 {
+        let g_a = sub([0.0; 3], crate::vec3::add(self.g_b, self.g_c));
+        norm(g_a).max(norm(self.g_b)).max(norm(self.g_c))
+    }
+
+    /// Whether the foot of `u` lies outside the face by more than `FOOT_BAND` beyond the
+    /// projection's tolerance in some barycentric coordinate.
+    #[inline(always)]
+    fn clearly_outside(&self, u: [f64; 3]) -> bool {
+        let p = sub(u, self.a);
+        let (w_b, w_c) = (dot(self.g_b, p), dot(self.g_c, p));
+        let limit = -BARYCENTRIC_TOLERANCE - FOOT_BAND;
+        w_b < limit || w_c < limit || 1.0 - w_b - w_c < limit
+    }
 }
 
 impl RigidFrames {
@@ -145,10 +203,25 @@ impl RigidFrames {
                     .collect()
             })
             .collect();
+        let feet = templates
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                t.triangles
+                    .iter()
+                    .map(|tri| FootMap::of(tri.map(|i| t.nodes[i])))
+                    .collect::<Option<Vec<FootMap>>>()
+                    .ok_or_else(|| invalid(format!("rigid template {k} has a degenerate face")))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let gradient: Vec<f64> = feet
+            .iter()
+            .map(|f| f.iter().map(FootMap::gradient).fold(0.0, f64::max))
+            .collect();
         let ranges = face_ranges(surface);
         let mut slot = vec![NO_FRAME; ranges.len()];
         let mut frame_bodies = Vec::with_capacity(bodies.len());
-        let (mut mismatch, mut finite): (f64, bool) = (0.0, true);
+        let (mut mismatch, mut foot_mismatch, mut finite): (f64, f64, bool) = (0.0, 0.0, true);
         for (k, (&(body, template), pose)) in bodies.iter().zip(poses).enumerate() {
             let tpl = templates.get(template).ok_or_else(|| {
                 invalid(format!(
@@ -164,14 +237,20 @@ impl RigidFrames {
                     tpl.triangles.len()
                 )));
             }
+            let mut body_mismatch: f64 = 0.0;
             for (t, local) in faces.clone().zip(&tpl.triangles) {
                 for (&g, &i) in surface.triangles[t].iter().zip(local) {
                     let u = pose.template_point(positions[g]);
                     let d = pose.scale * norm(sub(u, tpl.nodes[i]));
                     finite &= d.is_finite();
-                    mismatch = mismatch.max(d);
+                    body_mismatch = body_mismatch.max(d);
                 }
             }
+            mismatch = mismatch.max(body_mismatch);
+            // A node and the face's corners each off by the mismatch move a weight by at
+            // most the gradient times each offset (in template units: divided by the scale).
+            foot_mismatch =
+                foot_mismatch.max(4.0 * body_mismatch * gradient[template] / pose.scale);
             slot[body as usize] = k as u32;
             frame_bodies.push(FrameBody {
                 template: template as u32,
@@ -186,11 +265,13 @@ impl RigidFrames {
         }
         Ok(RigidFrames {
             planes,
+            feet,
             slot,
             bodies: frame_bodies,
             poses: poses.to_vec(),
             time: Some(time),
             mismatch,
+            foot_mismatch,
         })
     }
 
@@ -210,11 +291,14 @@ impl RigidFrames {
         Ok(())
     }
 
-    /// Whether the frames may stand in for the world planes in an evaluation at `time`
-    /// whose plane filter has slack `slack` (m): poses of that time, and a mismatch far
-    /// below the slack.
+    /// Whether the frames may stand in for the world planes and screen the feet in an
+    /// evaluation at `time` whose plane filter has slack `slack` (m): poses of that time,
+    /// and a mismatch far below both slacks.
     pub(crate) fn usable(&self, time: f64, slack: f64) -> bool {
-        self.time == Some(time) && self.mismatch <= MISMATCH_FRACTION * slack
+        self.time == Some(time)
+            && self.mismatch <= MISMATCH_FRACTION * slack
+            && self.foot_mismatch.is_finite()
+            && self.foot_mismatch <= MISMATCH_FRACTION * FOOT_BAND
     }
 
     /// Whether `body` has a frame.
@@ -233,6 +317,7 @@ impl RigidFrames {
             u: pose.template_point(x),
             scale: pose.scale,
             planes: &self.planes[b.template as usize],
+            feet: &self.feet[b.template as usize],
             first_triangle: b.first_triangle,
         })
     }
@@ -242,11 +327,20 @@ impl RigidFrames {
 /// filter's slack.
 const MISMATCH_FRACTION: f64 = 1e-3;
 
+/// How far outside a face (in barycentric coordinates, beyond the projection's own
+/// tolerance) a foot must lie for the template's screen to skip the face: orders of
+/// magnitude above the round-off of either computation (about 1e-16 times the
+/// coordinates over the face's size), yet thin enough to pass on only the candidates
+/// whose foot is near the face. (The parry kernel, a benchmark alternative whose band
+/// depends on the face's shape, is not screened.)
+pub(crate) const FOOT_BAND: f64 = 1e-4;
+
 /// A node in the template coordinates of one rigid body.
 pub(crate) struct TemplateView<'a> {
     u: [f64; 3],
     scale: f64,
     planes: &'a [[f64; 4]],
+    feet: &'a [FootMap],
     first_triangle: u32,
 }
 
@@ -257,6 +351,14 @@ impl TemplateView<'_> {
     pub(crate) fn signed_distance(&self, triangle: u32) -> f64 {
         let [nx, ny, nz, d] = self.planes[(triangle - self.first_triangle) as usize];
         self.scale * (nx * self.u[0] + ny * self.u[1] + nz * self.u[2] - d)
+    }
+
+    /// Whether the foot of the node's perpendicular on face `triangle` (the contact
+    /// surface's index) lies outside it by more than [`FOOT_BAND`] beyond the projection's
+    /// tolerance: then no exact test on the world positions can accept the face.
+    #[inline(always)]
+    pub(crate) fn foot_clearly_outside(&self, triangle: u32) -> bool {
+        self.feet[(triangle - self.first_triangle) as usize].clearly_outside(self.u)
     }
 }
 
@@ -273,4 +375,117 @@ fn face_ranges(surface: &ContactSurface) -> Vec<Option<std::ops::Range<usize>>> 
         };
     }
     ranges
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::narrow::project_hand;
+    use crate::vec3::add;
+    use fdem_core::geometry::rotation_matrix;
+    use rand::{RngExt, SeedableRng};
+
+    /// A placed template face: the world corners of `x = origin + A t`.
+    fn place(r: [[f64; 3]; 3], s: f64, origin: [f64; 3], t: [f64; 3]) -> [f64; 3] {
+        add(origin, r.map(|row| s * dot(row, t)))
+    }
+
+    /// The screen against the exact projection on world positions: a foot placed at
+    /// chosen barycentric coordinates of a placed template face (a millimetre particle a
+    /// tenth of a metre from the origin, turned at random) is screened out exactly when
+    /// one coordinate lies beyond the band, and the projection accepts every foot inside
+    /// the tolerance. A band of the wrong sign, or maps of the wrong corners, fail it.
+    #[test]
+    fn the_foot_screen_skips_only_faces_the_projection_refuses() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let (scale_m, depth_limit) = (1e-3, 1e-4);
+        let tol = BARYCENTRIC_TOLERANCE;
+        let (mut screened, mut accepted) = (0, 0);
+        for _ in 0..2000 {
+            let face: [[f64; 3]; 3] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-0.5..0.5)));
+            let Some(map) = FootMap::of(face) else {
+                continue;
+            };
+            let q: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let r = rotation_matrix(q);
+            let origin: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.1..0.1));
+            let world = face.map(|t| place(r, scale_m, origin, t));
+            // Weights: one coordinate just inside the tolerance, beyond the band, or inside.
+            let w_b = match rng.random_range(0..3) {
+                0 => -0.5 * tol,
+                1 => -tol - 2.0 * FOOT_BAND,
+                _ => rng.random_range(0.0..1.0),
+            };
+            let w_c = rng.random_range(0.0..(1.0 - w_b).min(1.0));
+            let w = [1.0 - w_b - w_c, w_b, w_c];
+            let foot: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| w[j] * face[j][i]).sum());
+            let n = cross(sub(face[1], face[0]), sub(face[2], face[0]));
+            let behind = -0.5 * depth_limit / scale_m / norm(n);
+            let t = add(foot, scale(n, behind));
+            let x = place(r, scale_m, origin, t);
+            // The pose maps world to template coordinates as the frames do.
+            let pose = RigidPose {
+                to_template: std::array::from_fn(|i| std::array::from_fn(|j| r[j][i] / scale_m)),
+                origin,
+                scale: scale_m,
+            };
+            assert!(pose.is_scaled_rotation());
+            let out = map.clearly_outside(pose.template_point(x));
+            let hit = project_hand(x, world, depth_limit);
+            let beyond = w.iter().any(|&wi| wi < -tol - FOOT_BAND);
+            assert_eq!(out, beyond, "weights {w:?}: screened {out}");
+            assert!(
+                !out || hit.is_none(),
+                "screened out a face the projection accepts"
+            );
+            let inside = w.iter().all(|&wi| wi >= -tol);
+            assert_eq!(hit.is_some(), inside, "weights {w:?}: projection {hit:?}");
+            screened += usize::from(out);
+            accepted += usize::from(hit.is_some());
+        }
+        assert!(
+            screened > 400 && accepted > 800,
+            "screened {screened}, accepted {accepted}"
+        );
+    }
+
+    /// The frames stand aside when a body's corners are off their pose by more than the
+    /// feet's share of the band allows, even if the planes' slack would allow it.
+    #[test]
+    fn a_mismatch_beyond_the_feet_band_sets_the_frames_aside() {
+        let template = RigidTemplate {
+            nodes: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        let mut surface = ContactSurface::default();
+        surface
+            .push_body(0, &template.triangles, &[0, 1, 2, 3], &[1.0; 4])
+            .unwrap();
+        let pose = RigidPose {
+            to_template: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            origin: [0.0; 3],
+            scale: 1.0,
+        };
+        let frames_with = |offset: f64| {
+            let mut positions = template.nodes.clone();
+            positions[3][2] += offset;
+            RigidFrames::new(
+                &surface,
+                &positions,
+                std::slice::from_ref(&template),
+                &[(0, 0)],
+                (0.0, &[pose]),
+            )
+            .unwrap()
+        };
+        let slack = 1.0;
+        assert!(frames_with(0.0).usable(0.0, slack));
+        assert!(!frames_with(1e-6).usable(0.0, slack));
+    }
 }

@@ -301,8 +301,9 @@ fn corner_angle(face: [[f64; 3]; 3], k: usize) -> f64 {
 /// body there and the hit is dropped.
 pub(crate) fn covered_in_front(group: &FaceGroup<'_>, depth: f64) -> bool {
     let (x, positions, slack) = (group.x, group.positions, group.reach.slack);
-    group.cands.iter().zip(group.signed).any(|(c, &s)| {
-        s >= -slack && s <= depth + slack && {
+    let mut candidates = group.cands.iter().zip(group.signed).zip(group.outside);
+    candidates.any(|((c, &s), &outside)| {
+        !outside && s >= -slack && s <= depth + slack && {
             let face = c.nodes.map(|j| positions[j as usize]);
             front_distance(x, face, depth).is_some()
         }
