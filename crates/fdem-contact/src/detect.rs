@@ -431,8 +431,11 @@ impl Ctx<'_> {
     fn nearest_face(&self, group: &FaceGroup<'_>) -> Option<FaceContact> {
         let (x, reach) = (group.x, group.reach);
         let mut best: Option<FaceContact> = None;
-        for (c, &s) in group.cands.iter().zip(group.signed) {
-            if !reach.within(s) {
+        // The screen's band holds the hand-written projection's tolerance only.
+        let screened = self.kernel == ProjectionKernel::Hand;
+        let candidates = group.cands.iter().zip(group.signed).zip(group.outside);
+        for ((c, &s), &outside) in candidates {
+            if !reach.within(s) || (screened && outside) {
                 continue;
             }
             let nodes = c.nodes.map(|j| j as usize);
