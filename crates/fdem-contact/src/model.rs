@@ -156,16 +156,41 @@ fn face_planes(
 ) {
     let triangles = &surface.triangles;
     planes.resize(triangles.len(), [0.0; 4]);
-    planes
-        .par_iter_mut()
-        .zip(triangles.par_iter())
-        .zip(listed.par_iter().zip(surface.triangle_body.par_iter()))
-        .with_min_len(CHUNK)
-        .for_each(|((plane, tri), (&listed, &body))| {
-            if listed && !frames.is_some_and(|f| f.has(body)) {
-                *plane = unit_plane(tri.map(|i| positions[i]));
+    if listed.is_empty() {
+        return;
+    }
+    let plane = |t: usize| unit_plane(triangles[t].map(|i| positions[i]));
+    let Some(frames) = frames else {
+        planes
+            .par_iter_mut()
+            .zip(listed.par_iter())
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(t, (p, &listed))| {
+                if listed {
+                    *p = plane(t);
+                }
+            });
+        return;
+    };
+    // Only the faces outside the frames, in pieces of consecutive faces (a specimen's
+    // rigid particles would otherwise cost a pass over all their faces to skip them).
+    let mut pieces = Vec::with_capacity(frames.unframed_faces().len());
+    let mut rest: &mut [[f64; 4]] = planes;
+    let mut offset = 0;
+    for r in frames.unframed_faces() {
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(r.start - offset);
+        let (piece, tail) = tail.split_at_mut(r.len());
+        pieces.push((r.start, piece));
+        (rest, offset) = (tail, r.end);
+    }
+    pieces.into_par_iter().for_each(|(start, piece)| {
+        for (t, p) in (start..).zip(piece) {
+            if listed[t] {
+                *p = plane(t);
             }
-        });
+        }
+    });
 }
 
 /// The frames, when they stand in for the world planes in this evaluation (`active`). A

@@ -30,6 +30,7 @@
 //! above that disagreement (in metres for the planes, in barycentric units, through the
 //! largest gradient of a template's weights, for the feet).
 
+use crate::broad::CHUNK;
 use crate::model::unit_plane;
 use crate::narrow::BARYCENTRIC_TOLERANCE;
 use crate::vec3::{cross, dot, norm, norm2, scale, sub};
@@ -106,6 +107,8 @@ pub(crate) struct RigidFrames {
     feet: Vec<Vec<FootMap>>,
     /// Per body id, its index in `bodies` (`NO_FRAME`: not a rigid body with a frame).
     slot: Vec<u32>,
+    /// The faces of bodies without a frame, in increasing runs of at most `CHUNK`.
+    unframed: Vec<std::ops::Range<usize>>,
     bodies: Vec<FrameBody>,
     poses: Vec<RigidPose>,
     /// The time of `poses` (`None` before the first [`RigidFrames::set_poses`]).
@@ -263,10 +266,12 @@ impl RigidFrames {
                     .into(),
             ));
         }
+        let unframed = unframed_faces(surface, &slot);
         Ok(RigidFrames {
             planes,
             feet,
             slot,
+            unframed,
             bodies: frame_bodies,
             poses: poses.to_vec(),
             time: Some(time),
@@ -299,6 +304,12 @@ impl RigidFrames {
             && self.mismatch <= MISMATCH_FRACTION * slack
             && self.foot_mismatch.is_finite()
             && self.foot_mismatch <= MISMATCH_FRACTION * FOOT_BAND
+    }
+
+    /// The faces of the bodies without a frame: increasing, disjoint runs of consecutive
+    /// faces, each of at most `CHUNK` faces.
+    pub(crate) fn unframed_faces(&self) -> &[std::ops::Range<usize>] {
+        &self.unframed
     }
 
     /// Whether `body` has a frame.
@@ -360,6 +371,23 @@ impl TemplateView<'_> {
     pub(crate) fn foot_clearly_outside(&self, triangle: u32) -> bool {
         self.feet[(triangle - self.first_triangle) as usize].clearly_outside(self.u)
     }
+}
+
+/// The faces of `surface` whose body has no frame in `slot`, as increasing runs of at most
+/// `CHUNK` consecutive faces.
+fn unframed_faces(surface: &ContactSurface, slot: &[u32]) -> Vec<std::ops::Range<usize>> {
+    let framed = |t: usize| {
+        slot.get(surface.triangle_body[t] as usize)
+            .is_some_and(|&s| s != NO_FRAME)
+    };
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for t in (0..surface.triangles.len()).filter(|&t| !framed(t)) {
+        match runs.last_mut() {
+            Some(r) if r.end == t && r.len() < CHUNK => r.end = t + 1,
+            _ => runs.push(t..t + 1),
+        }
+    }
+    runs
 }
 
 /// Per body id, the range of its faces in `surface` when they are consecutive (`None`
@@ -448,6 +476,51 @@ mod tests {
             screened > 400 && accepted > 800,
             "screened {screened}, accepted {accepted}"
         );
+    }
+
+    /// The faces outside the frames: every face of the bodies without one, in order, in
+    /// runs no longer than a chunk, and none of a framed body's.
+    #[test]
+    fn the_unframed_faces_are_the_other_bodies_faces_in_chunks() {
+        let template = RigidTemplate {
+            nodes: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        };
+        let shift = |tris: &[[usize; 3]], by: usize| -> Vec<[usize; 3]> {
+            tris.iter().map(|t| t.map(|i| i + by)).collect()
+        };
+        // Bodies 0 and 2 framed tetrahedra; body 1 a deformable body of 1,000 faces.
+        let mut surface = ContactSurface::default();
+        surface
+            .push_body(0, &template.triangles, &[0, 1, 2, 3], &[1.0; 4])
+            .unwrap();
+        let many = vec![[4, 5, 6]; 1000];
+        surface.push_body(1, &many, &[4, 5, 6], &[1.0; 3]).unwrap();
+        surface
+            .push_body(2, &shift(&template.triangles, 7), &[7, 8, 9, 10], &[1.0; 4])
+            .unwrap();
+        let mut positions = template.nodes.clone();
+        positions.extend([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]]);
+        positions.extend(template.nodes.iter().map(|p| [p[0] + 9.0, p[1], p[2]]));
+        let pose = |x: f64| RigidPose {
+            to_template: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            origin: [x, 0.0, 0.0],
+            scale: 1.0,
+        };
+        let frames = RigidFrames::new(
+            &surface,
+            &positions,
+            std::slice::from_ref(&template),
+            &[(0, 0), (2, 0)],
+            (0.0, &[pose(0.0), pose(9.0)]),
+        )
+        .unwrap();
+        assert_eq!(frames.unframed_faces(), &[4..4 + CHUNK, 4 + CHUNK..1004]);
     }
 
     /// The frames stand aside when a body's corners are off their pose by more than the
