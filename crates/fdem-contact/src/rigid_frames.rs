@@ -478,11 +478,9 @@ mod tests {
         );
     }
 
-    /// The faces outside the frames: every face of the bodies without one, in order, in
-    /// runs no longer than a chunk, and none of a framed body's.
-    #[test]
-    fn the_unframed_faces_are_the_other_bodies_faces_in_chunks() {
-        let template = RigidTemplate {
+    /// A tetrahedron on the unit axes, its faces outward.
+    fn unit_tetrahedron() -> RigidTemplate {
+        RigidTemplate {
             nodes: vec![
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
@@ -490,7 +488,23 @@ mod tests {
                 [0.0, 0.0, 1.0],
             ],
             triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
-        };
+        }
+    }
+
+    /// The pose of a template shifted by `x` along the first axis, unturned, unscaled.
+    fn shifted_pose(x: f64) -> RigidPose {
+        RigidPose {
+            to_template: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            origin: [x, 0.0, 0.0],
+            scale: 1.0,
+        }
+    }
+
+    /// The faces outside the frames: every face of the bodies without one, in order, in
+    /// runs no longer than a chunk, and none of a framed body's.
+    #[test]
+    fn the_unframed_faces_are_the_other_bodies_faces_in_chunks() {
+        let template = unit_tetrahedron();
         let shift = |tris: &[[usize; 3]], by: usize| -> Vec<[usize; 3]> {
             tris.iter().map(|t| t.map(|i| i + by)).collect()
         };
@@ -507,17 +521,12 @@ mod tests {
         let mut positions = template.nodes.clone();
         positions.extend([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [5.0, 1.0, 0.0]]);
         positions.extend(template.nodes.iter().map(|p| [p[0] + 9.0, p[1], p[2]]));
-        let pose = |x: f64| RigidPose {
-            to_template: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            origin: [x, 0.0, 0.0],
-            scale: 1.0,
-        };
         let frames = RigidFrames::new(
             &surface,
             &positions,
             std::slice::from_ref(&template),
             &[(0, 0), (2, 0)],
-            (0.0, &[pose(0.0), pose(9.0)]),
+            (0.0, &[shifted_pose(0.0), shifted_pose(9.0)]),
         )
         .unwrap();
         assert_eq!(frames.unframed_faces(), &[4..4 + CHUNK, 4 + CHUNK..1004]);
@@ -527,24 +536,12 @@ mod tests {
     /// feet's share of the band allows, even if the planes' slack would allow it.
     #[test]
     fn a_mismatch_beyond_the_feet_band_sets_the_frames_aside() {
-        let template = RigidTemplate {
-            nodes: vec![
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [0.0, 0.0, 1.0],
-            ],
-            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
-        };
+        let template = unit_tetrahedron();
         let mut surface = ContactSurface::default();
         surface
             .push_body(0, &template.triangles, &[0, 1, 2, 3], &[1.0; 4])
             .unwrap();
-        let pose = RigidPose {
-            to_template: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            origin: [0.0; 3],
-            scale: 1.0,
-        };
+        let pose = shifted_pose(0.0);
         let frames_with = |offset: f64| {
             let mut positions = template.nodes.clone();
             positions[3][2] += offset;
