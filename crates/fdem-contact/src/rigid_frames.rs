@@ -33,7 +33,7 @@
 use crate::broad::CHUNK;
 use crate::model::unit_plane;
 use crate::narrow::BARYCENTRIC_TOLERANCE;
-use crate::vec3::{cross, dot, norm, norm2, scale, sub};
+use crate::vec3::{add, cross, dot, norm, norm2, scale, sub};
 use crate::{ContactError, ContactSurface};
 
 /// The surface of a rigid body's template: its nodes in template coordinates, and its
@@ -75,7 +75,7 @@ impl RigidPose {
                 (dot(r[i], r[j]) - want).abs() <= 1e-9
             })
         });
-        orthonormal && dot(crate::vec3::cross(r[0], r[1]), r[2]) > 0.0
+        orthonormal && dot(cross(r[0], r[1]), r[2]) > 0.0
     }
 
     /// Template coordinates of the world point `x`.
@@ -147,7 +147,7 @@ impl FootMap {
 
     /// The largest change of a weight per unit move of the node (template units^-1).
     fn gradient(&self) -> f64 {
-        let g_a = sub([0.0; 3], crate::vec3::add(self.g_b, self.g_c));
+        let g_a = scale(add(self.g_b, self.g_c), -1.0);
         norm(g_a).max(norm(self.g_b)).max(norm(self.g_c))
     }
 
@@ -409,7 +409,6 @@ fn face_ranges(surface: &ContactSurface) -> Vec<Option<std::ops::Range<usize>>> 
 mod tests {
     use super::*;
     use crate::narrow::project_hand;
-    use crate::vec3::add;
     use fdem_core::geometry::rotation_matrix;
     use rand::{RngExt, SeedableRng};
 
