@@ -129,6 +129,12 @@ pub struct TestPlan {
     pub estimated_seconds_max: f64,
     /// Estimated wall-clock seconds of the shear alone.
     pub estimated_shear_seconds: f64,
+    /// Measured wall-clock seconds per step over the shear's first steps: the consolidated
+    /// specimen's contact network, which a loose packing's first steps do not yet carry
+    /// (null until measured, and after a resume past those steps).
+    pub shear_seconds_per_step: f64,
+    /// The shear's estimate from `shear_seconds_per_step`.
+    pub reestimated_shear_seconds: f64,
 }
 
 /// Progress of a phase.
@@ -159,6 +165,9 @@ pub trait TestObserver {
     }
     /// The cost estimate, once, after the first steps.
     fn plan(&mut self, _plan: &TestPlan) {}
+    /// The shear's estimate again, once, after its own first steps
+    /// (`shear_seconds_per_step`, `reestimated_shear_seconds`).
+    fn shear_plan(&mut self, _plan: &TestPlan) {}
     /// A phase starts.
     fn phase(&mut self, _phase: TestPhase, _planned_steps: u64) {}
     /// Progress, every few hundred steps.
@@ -816,6 +825,8 @@ fn initial_summary(run: &Run<'_>, run_id: String) -> TestSummary {
             seconds_per_step: f64::NAN,
             estimated_seconds_max: f64::NAN,
             estimated_shear_seconds: f64::NAN,
+            shear_seconds_per_step: f64::NAN,
+            reestimated_shear_seconds: f64::NAN,
         },
         membrane_divisions: [membrane.divisions_around, membrane.divisions_along],
         membrane_radius: membrane.radius,
@@ -1271,6 +1282,12 @@ fn equilibrium_watch(
     }
 }
 
+/// The shear's estimate from its first `steps` steps' wall time.
+fn recalibrate_shear(plan: &mut TestPlan, wall: Instant, steps: u64) {
+    plan.shear_seconds_per_step = wall.elapsed().as_secs_f64() / steps as f64;
+    plan.reestimated_shear_seconds = plan.shear_seconds_per_step * plan.shear_steps as f64;
+}
+
 /// The plan's cost estimate from the first `steps` steps' wall time.
 fn calibrate(plan: &mut TestPlan, wall: Instant, steps: u64) {
     let per_step = wall.elapsed().as_secs_f64() / steps as f64;
@@ -1414,6 +1431,7 @@ fn shear(
         }
     };
     observer.phase(TestPhase::Shear, planned);
+    let timed = Instant::now();
     let mut steps = first_step;
     let reference = curve.reference;
     // Errors leave the loop with the cost of the steps taken recorded.
@@ -1425,6 +1443,10 @@ fn shear(
             break Err(e);
         }
         steps += 1;
+        if steps == first_step + CALIBRATION_STEPS {
+            recalibrate_shear(&mut summary.plan, timed, steps - first_step);
+            observer.shear_plan(&summary.plan);
+        }
         let eps_a = crate::measure::axial_strain(reference.h0, run.model.height());
         let done = eps_a >= test.target_strain;
         let status = if eps_a >= curve.next_output || done {

@@ -79,6 +79,12 @@ fn stop_twice_and_compare(prepared: &PreparedSpecimen) -> fdem_triaxial::TestSum
     let reference = run_test(prepared, &options(&whole, false), &mut SilentTest, &never).unwrap();
     assert_eq!(reference.status, "completed");
     assert!(!whole.join(CHECKPOINT_FILE).exists());
+    // The shear re-estimated from its own first steps, the plan's step count at that pace.
+    let plan = &reference.plan;
+    assert!(reference.shear.steps > 200, "{}", reference.shear.steps);
+    assert!(plan.shear_seconds_per_step > 0.0, "{plan:?}");
+    let at_pace = plan.shear_seconds_per_step * plan.shear_steps as f64;
+    assert_eq!(plan.reestimated_shear_seconds, at_pace);
 
     // Stopped in consolidation, halfway: a checkpoint, an interrupted summary.
     let mut stop = StopAt {

@@ -151,6 +151,14 @@ impl TestProgress {
         }
     }
 
+    /// A line above the bar, or on stderr without one.
+    fn println(&self, line: String) {
+        match &self.bar {
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+
     /// Clears the bar.
     pub(crate) fn finish(&mut self) {
         if let Some(bar) = self.bar.take() {
@@ -179,10 +187,17 @@ impl TestObserver for TestProgress {
             duration(plan.estimated_shear_seconds),
             duration(plan.estimated_seconds_max),
         );
-        match &self.bar {
-            Some(bar) => bar.println(line),
-            None => eprintln!("{line}"),
-        }
+        self.println(line);
+    }
+
+    fn shear_plan(&mut self, plan: &TestPlan) {
+        self.println(format!(
+            "shear: {:.2} ms/step over its first steps (the plan's {:.2} ms/step came from the first \
+             consolidation steps): shear about {}",
+            1e3 * plan.shear_seconds_per_step,
+            1e3 * plan.seconds_per_step,
+            duration(plan.reestimated_shear_seconds),
+        ));
     }
 
     fn phase(&mut self, phase: TestPhase, planned_steps: u64) {
@@ -332,12 +347,13 @@ fn prepared(args: &TriaxialArgs, interrupt: &Arc<AtomicBool>) -> anyhow::Result<
     prepared.save(&cache)?;
     let r = &prepared.report;
     eprintln!(
-        "prepared in {:.1} s ({} + {} steps): nominal solid fraction {:.3}, coordination {:.2}; \
-         saved to {}",
+        "prepared in {:.1} s ({} + {} steps): solid fraction {:.3} nominal, {:.3} of the meshes; \
+         coordination {:.2}; saved to {}",
         r.wall_seconds,
         r.compact_steps,
         r.settle_steps,
         r.solid_fraction_nominal,
+        r.solid_fraction_real,
         r.coordination_number,
         cache.display()
     );
