@@ -128,6 +128,7 @@ pub mod narrow;
 mod params;
 mod prefetch;
 mod rigid_frames;
+mod scan;
 mod sheet;
 mod surface;
 mod vec3;
@@ -141,6 +142,6 @@ pub use model::{
 };
 pub use narrow::{BARYCENTRIC_TOLERANCE, FaceHit, ProjectionKernel, front_distance};
 pub use params::{ContactParams, NodeCoefficients, Requirement, spring_dashpot_time_step};
-pub use rigid_frames::{RigidPose, RigidTemplate};
+pub use rigid_frames::{RigidMotion, RigidPose, RigidTemplate};
 pub use surface::ContactSurface;
 pub use wall::{Wall, WallShape};

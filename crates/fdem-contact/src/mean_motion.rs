@@ -107,6 +107,11 @@ fn apply(m: &Matrix, o: [f64; 3], x: [f64; 3]) -> [f64; 3] {
 }
 
 impl Expected {
+    /// The map's fixed point `O`, its matrix `M` and `M^-1`: `y -> O + M (y - O)`.
+    pub(crate) fn parts(&self) -> ([f64; 3], &Matrix, &Matrix) {
+        (self.origin, &self.a, &self.a_inv)
+    }
+
     /// The expected position now of a node whose reference is `reference`.
     #[inline]
     pub(crate) fn position(&self, reference: [f64; 3]) -> [f64; 3] {

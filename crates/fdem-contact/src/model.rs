@@ -8,11 +8,12 @@ use serde::{Deserialize, Serialize};
 use crate::broad::{BroadPhase, CHUNK};
 use crate::detect::{ChunkScratch, Ctx};
 use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
-use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion, drift2};
+use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::prefetch::prefetch;
-use crate::rigid_frames::{RigidFrames, RigidPose, RigidTemplate};
+use crate::rigid_frames::{RigidFrames, RigidMotion, RigidPose, RigidTemplate};
+use crate::scan::{Nodes, Scan, bound_within};
 use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
 use crate::{
@@ -409,38 +410,6 @@ impl fmt::Display for StableStep {
              (k = {:.4e} N/m, m = {:.4e} kg, beta = {})",
             self.node, self.body, self.time_step, self.stiffness, self.mass, self.damping_ratio
         )
-    }
-}
-
-/// Result of the per-step scan of the surface nodes.
-#[derive(Clone, Copy, Debug)]
-struct Scan {
-    /// First non-finite position or velocity: (surface index, is_velocity).
-    bad: Option<(usize, bool)>,
-    max_drift2: f64,
-    max_speed2: f64,
-    fastest: usize,
-}
-
-impl Scan {
-    fn merge(self, o: Scan) -> Scan {
-        let bad = match (self.bad, o.bad) {
-            (Some(a), Some(b)) => Some(if a.0 <= b.0 { a } else { b }),
-            (a, b) => a.or(b),
-        };
-        let (max_speed2, fastest) = if o.max_speed2 > self.max_speed2
-            || (o.max_speed2 == self.max_speed2 && o.fastest < self.fastest)
-        {
-            (o.max_speed2, o.fastest)
-        } else {
-            (self.max_speed2, self.fastest)
-        };
-        Scan {
-            bad,
-            max_drift2: self.max_drift2.max(o.max_drift2),
-            max_speed2,
-            fastest,
-        }
     }
 }
 
@@ -990,6 +959,31 @@ impl ContactModel {
         frames.set_poses(time, poses)
     }
 
+    /// The rigid bodies' motions at `time` (a bound of their nodes' speeds, whether their
+    /// nodes are finite; one per body in the order [`ContactModel::set_rigid_frames`] was
+    /// given them): with the poses of that time, the evaluation's per-step scan reads those
+    /// bodies' nodes only where the bounds cannot decide for them (the `scan` module has
+    /// why the results are the same). Each motion must hold for the nodes as placed for the
+    /// evaluation.
+    ///
+    /// # Errors
+    /// [`ContactError::LengthMismatch`] for another number of motions; `InconsistentSurface`
+    /// when no frames were set.
+    pub fn set_rigid_motions(
+        &mut self,
+        time: f64,
+        motions: &[RigidMotion],
+    ) -> Result<(), ContactError> {
+        let frames = self
+            .rigid_frames
+            .as_mut()
+            .ok_or(ContactError::InconsistentSurface {
+                what: "rigid motions given before the rigid frames".into(),
+                fix: "call set_rigid_frames first",
+            })?;
+        frames.set_motions(time, motions)
+    }
+
     /// Whether the last evaluation met the rigid bodies' faces in their templates' frames.
     pub fn rigid_frames_in_use(&self) -> bool {
         self.frames_active
@@ -1272,52 +1266,30 @@ impl ContactModel {
     }
 
     /// Scans the surface nodes: finiteness, drift since the last build (from the expected
-    /// positions under a mean motion), largest speed.
+    /// positions under a mean motion), largest speed; a framed body's pose and motion may
+    /// stand in for its nodes against the drift `allowance` (m) and the tunnelling bound of
+    /// the step `dt` (`crate::scan`).
     fn scan(
         &self,
         positions: &[[f64; 3]],
         velocities: &[[f64; 3]],
         expected: Option<&Expected>,
+        (allowance, time, dt): (f64, f64, f64),
     ) -> Scan {
-        let nodes = &self.surface.surface_nodes;
-        let reference = if self.broad.built {
-            Some(&self.broad.reference)
-        } else {
-            None
+        let nodes = Nodes {
+            surface: &self.surface,
+            positions,
+            velocities,
+            reference: self.broad.built.then_some(self.broad.reference.as_slice()),
+            expected,
         };
-        let empty = Scan {
-            bad: None,
-            max_drift2: 0.0,
-            max_speed2: 0.0,
-            fastest: 0,
-        };
-        (0..nodes.len().div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|chunk| {
-                let mut s = empty;
-                let start = chunk * CHUNK;
-                for k in start..(start + CHUNK).min(nodes.len()) {
-                    let x = positions[nodes[k]];
-                    let v = velocities[nodes[k]];
-                    if s.bad.is_none() {
-                        if !is_finite(x) {
-                            s.bad = Some((k, false));
-                        } else if !is_finite(v) {
-                            s.bad = Some((k, true));
-                        }
-                    }
-                    if let Some(r) = reference {
-                        s.max_drift2 = s.max_drift2.max(drift2(expected, x, r[k]));
-                    }
-                    let v2 = norm2(v);
-                    if v2 > s.max_speed2 {
-                        s.max_speed2 = v2;
-                        s.fastest = k;
-                    }
-                }
-                s
-            })
-            .reduce(|| empty, Scan::merge)
+        let frames = active_frames(&self.rigid_frames, self.frames_active);
+        match frames.and_then(|f| Some((f, f.motions_at(time)?))) {
+            Some((frames, motions)) => {
+                nodes.scan_framed(frames, motions, (allowance, dt, self.depth_limit))
+            }
+            None => nodes.scan(),
+        }
     }
 
     /// Adds the contact forces for the state at time `time` to `forces`, advancing the
@@ -1389,8 +1361,12 @@ impl ContactModel {
             .is_some_and(|f| f.usable(time, slack));
         let mut planes = std::mem::take(&mut self.planes);
         let frames = active_frames(&self.rigid_frames, self.frames_active);
+        let allowance = self.drift_allowance().drift;
         let (scan, ()) = rayon::join(
-            || self.scan(positions, velocities, expected.as_ref()),
+            || {
+                let limits = (allowance, time, dt);
+                self.scan(positions, velocities, expected.as_ref(), limits)
+            },
             || {
                 face_planes(
                     &mut planes,
@@ -1674,9 +1650,10 @@ impl ContactModel {
             let policy = self.refresh_policy;
             let near = policy.near * half;
             let expected = drift.expected.as_ref();
+            let clean = self.clearly_clean(expected, near);
             let (dirty, nodes) =
                 self.broad
-                    .drifted_bodies(positions, &self.surface, near, expected);
+                    .drifted_bodies(positions, &self.surface, (near, &clean), expected);
             let total = self.surface.surface_nodes.len() as f64;
             let refreshed = (self.broad.refreshed_nodes() + nodes) as f64;
             if nodes as f64 <= policy.max_fraction * total
@@ -1691,6 +1668,10 @@ impl ContactModel {
                     |body| sheets.is_sheet(body),
                 );
                 if refreshed {
+                    let current = self.frames_active;
+                    if let Some(frames) = self.rigid_frames.as_mut() {
+                        frames.refresh_references(&dirty, expected, current);
+                    }
                     return Renewal::Refresh { bodies };
                 }
             }
@@ -1703,12 +1684,29 @@ impl ContactModel {
             |body| sheets.is_sheet(body),
         );
         self.rebuild_requested = false;
+        let current = self.frames_active;
+        if let Some(frames) = self.rigid_frames.as_mut() {
+            frames.reset_references(current);
+        }
         self.build_gradient = self
             .mean
             .as_ref()
             .map_or(IDENTITY, |m| m.gradient_at(drift.time));
         self.largest_distortion = 0.0;
         Renewal::Full
+    }
+
+    /// Per body id, whether a framed body's pose shows all its nodes clearly within
+    /// `threshold` (m) of their expected references (a refresh need not read them).
+    fn clearly_clean(&self, expected: Option<&Expected>, threshold: f64) -> Vec<bool> {
+        let mut clean = vec![false; self.surface.n_bodies()];
+        let Some(frames) = active_frames(&self.rigid_frames, self.frames_active) else {
+            return clean;
+        };
+        for (body, k) in frames.framed_bodies() {
+            clean[body as usize] = bound_within(frames, k, expected, threshold).is_some();
+        }
+        clean
     }
 
     /// Which per-pair tunnelling checks this step needs, from the largest node speed

@@ -20,6 +20,17 @@
 //! world positions altogether (on a convex particle most candidates lie behind their
 //! face's plane, so the plane alone passes most of them on to the projection).
 //!
+//! The frames also stand in for a rigid body's nodes in the per-step scan (`crate::scan`):
+//! its caller bounds how fast its nodes move and says whether they are finite
+//! ([`RigidMotion`], from the body's state), and its drift since its reference
+//! is bounded from its pose: with the reference positions `c + G t` (the pose when the
+//! body's pairs were found, mapped back by the mean motion as the node references are) and
+//! the mean motion's map `y -> O + M (y - O)`, node `t` has drifted `delta + B t` with
+//! `delta = origin - O - M (c - O)` and `B = A - M G`, at most `|delta| + |B|_F r` (`r` the
+//! template's largest node distance). Where that bound, plus the mismatch, is clearly below
+//! a threshold the nodes are clearly below it too; elsewhere the scan reads the nodes as
+//! before, so its decisions are the same.
+//!
 //! The filters' decisions do not change: the two distances differ by round-off (of the
 //! order of 1e-16 of the coordinates), and the filter keeps every face within its slack
 //! of its reach (`PLANE_SLACK` of the depth limit, orders of magnitude above that), after
@@ -31,6 +42,7 @@
 //! largest gradient of a template's weights, for the feet).
 
 use crate::broad::CHUNK;
+use crate::mean_motion::{Expected, IDENTITY, Matrix};
 use crate::model::unit_plane;
 use crate::narrow::BARYCENTRIC_TOLERANCE;
 use crate::vec3::{add, cross, dot, norm, norm2, scale, sub};
@@ -86,6 +98,37 @@ impl RigidPose {
     }
 }
 
+/// A rigid body's motion as its caller knows it at an evaluation: a bound of its nodes'
+/// speeds, and whether every node position and velocity is finite. With these the contact
+/// model's per-step scan need not read the body's nodes
+/// ([`crate::ContactModel::set_rigid_motions`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidMotion {
+    /// At least the speed of every node of the body as placed (m/s), for example
+    /// `|V| + |omega| max |r|` with room for the round-off of placing them.
+    pub speed_bound: f64,
+    /// Whether every node position and velocity of the body is finite.
+    pub finite: bool,
+}
+
+/// Where a framed body's nodes had their reference positions: `c + G t` for template
+/// coordinates `t`.
+#[derive(Clone, Copy, Debug)]
+struct ReferenceMap {
+    c: [f64; 3],
+    g: Matrix,
+}
+
+/// A framed body's surface nodes when they are consecutive in the surface and in node
+/// ids, each a corner of one of its faces: surface indices `start..start + len`, global ids
+/// from `first`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct NodeRun {
+    pub(crate) start: usize,
+    pub(crate) len: usize,
+    pub(crate) first: usize,
+}
+
 /// A rigid body as the frames know it.
 #[derive(Clone, Copy, Debug)]
 struct FrameBody {
@@ -105,6 +148,20 @@ pub(crate) struct RigidFrames {
     planes: Vec<Vec<[f64; 4]>>,
     /// Per template, its faces' barycentric maps.
     feet: Vec<Vec<FootMap>>,
+    /// Per template, the largest distance of its nodes from its origin (template units).
+    radius: Vec<f64>,
+    /// Per framed body (in the order of `bodies`), its surface nodes when the scan may
+    /// stand in for them (`NodeRun`).
+    node_runs: Vec<Option<NodeRun>>,
+    /// The surface nodes the scan reads one by one whenever the frames serve: those of
+    /// bodies without a `NodeRun`, in increasing runs of at most `CHUNK`.
+    scanned_nodes: Vec<std::ops::Range<usize>>,
+    /// The caller's motions of the framed bodies, and their time.
+    motions: Vec<RigidMotion>,
+    motions_time: Option<f64>,
+    /// Per framed body, the map of its nodes' reference positions (`None`: unknown, the
+    /// scan reads the nodes).
+    references: Vec<Option<ReferenceMap>>,
     /// Per body id, its index in `bodies` (`NO_FRAME`: not a rigid body with a frame).
     slot: Vec<u32>,
     /// The faces of bodies without a frame, in increasing runs of at most `CHUNK`.
@@ -267,9 +324,34 @@ impl RigidFrames {
             ));
         }
         let unframed = unframed_faces(surface, &slot);
+        let node_ranges = consecutive_ranges(&surface.node_body, surface.n_bodies());
+        let node_runs: Vec<Option<NodeRun>> = bodies
+            .iter()
+            .zip(&frame_bodies)
+            .map(|(&(body, template), b)| {
+                let nodes = node_ranges.get(body as usize).cloned().flatten();
+                node_run(
+                    surface,
+                    nodes,
+                    &templates[template],
+                    b.first_triangle as usize,
+                )
+            })
+            .collect();
+        let scanned_nodes = scanned_nodes(surface, &slot, &node_runs);
+        let radius = templates
+            .iter()
+            .map(|t| t.nodes.iter().map(|&n| norm(n)).fold(0.0, f64::max))
+            .collect();
         Ok(RigidFrames {
             planes,
             feet,
+            radius,
+            references: vec![None; node_runs.len()],
+            node_runs,
+            scanned_nodes,
+            motions: Vec::new(),
+            motions_time: None,
             slot,
             unframed,
             bodies: frame_bodies,
@@ -316,6 +398,123 @@ impl RigidFrames {
     #[inline(always)]
     pub(crate) fn has(&self, body: u32) -> bool {
         self.slot.get(body as usize).is_some_and(|&s| s != NO_FRAME)
+    }
+
+    /// The framed bodies' motions at `time`, one per body in the order the frames were
+    /// given.
+    pub(crate) fn set_motions(
+        &mut self,
+        time: f64,
+        motions: &[RigidMotion],
+    ) -> Result<(), ContactError> {
+        if motions.len() != self.bodies.len() {
+            return Err(ContactError::LengthMismatch {
+                array: "rigid motions",
+                expected: self.bodies.len(),
+                found: motions.len(),
+                reason: "one motion per rigid body given to set_rigid_frames",
+            });
+        }
+        self.motions.clear();
+        self.motions.extend_from_slice(motions);
+        self.motions_time = Some(time);
+        Ok(())
+    }
+
+    /// The caller's motions if they are of `time`.
+    pub(crate) fn motions_at(&self, time: f64) -> Option<&[RigidMotion]> {
+        (self.motions_time == Some(time)).then_some(self.motions.as_slice())
+    }
+
+    /// Each framed body's id and its index in the frames' order.
+    pub(crate) fn framed_bodies(&self) -> impl Iterator<Item = (u32, usize)> + '_ {
+        self.slot
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s != NO_FRAME)
+            .map(|(body, &s)| (body as u32, s as usize))
+    }
+
+    /// Per framed body, its node run when the scan may stand in for its nodes.
+    pub(crate) fn node_runs(&self) -> &[Option<NodeRun>] {
+        &self.node_runs
+    }
+
+    /// The surface nodes the scan reads one by one while the frames serve.
+    pub(crate) fn scanned_nodes(&self) -> &[std::ops::Range<usize>] {
+        &self.scanned_nodes
+    }
+
+    /// The frames' mismatch (m): how far a node may lie from where its pose puts it.
+    pub(crate) fn mismatch(&self) -> f64 {
+        self.mismatch
+    }
+
+    /// Takes every framed body's current pose as its reference (a full build, which resets
+    /// the mean motion's map), or forgets them all when the poses are not the positions'
+    /// (`current` false).
+    pub(crate) fn reset_references(&mut self, current: bool) {
+        for k in 0..self.references.len() {
+            self.references[k] = current.then(|| self.reference_of(k, None));
+        }
+    }
+
+    /// Takes the current pose of each framed body marked in `dirty` (per body id) as its
+    /// reference, mapped back by the mean motion `expected` as a refresh maps the node
+    /// references; forgets them when the poses are not the positions' (`current` false).
+    pub(crate) fn refresh_references(
+        &mut self,
+        dirty: &[bool],
+        expected: Option<&Expected>,
+        current: bool,
+    ) {
+        for (body, _) in dirty.iter().enumerate().filter(|(_, d)| **d) {
+            if let Some(&k) = self.slot.get(body).filter(|&&k| k != NO_FRAME) {
+                let k = k as usize;
+                self.references[k] = current.then(|| self.reference_of(k, expected));
+            }
+        }
+    }
+
+    /// Framed body `k`'s current pose as a reference map, mapped back by `expected`.
+    fn reference_of(&self, k: usize, expected: Option<&Expected>) -> ReferenceMap {
+        let (origin, a) = placement(&self.poses[k]);
+        match expected {
+            None => ReferenceMap { c: origin, g: a },
+            Some(e) => {
+                let (o, _, inverse) = e.parts();
+                let c = add(o, apply(inverse, sub(origin, o)));
+                ReferenceMap {
+                    c,
+                    g: product(inverse, &a),
+                }
+            }
+        }
+    }
+
+    /// A bound of how far any node of framed body `k` lies from where the mean motion
+    /// `expected` has taken its reference (m), from the poses alone, mismatch excluded;
+    /// `None` without a reference.
+    pub(crate) fn drift_bound(&self, k: usize, expected: Option<&Expected>) -> Option<f64> {
+        let reference = self.references[k].as_ref()?;
+        let (origin, a) = placement(&self.poses[k]);
+        let (o, m) = match expected {
+            Some(e) => {
+                let (o, m, _) = e.parts();
+                (o, *m)
+            }
+            None => ([0.0; 3], IDENTITY),
+        };
+        // delta = origin - O - M (c - O), B = A - M G.
+        let delta = sub(sub(origin, o), apply(&m, sub(reference.c, o)));
+        let mg = product(&m, &reference.g);
+        let b: f64 = (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| (a[i][j] - mg[i][j]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let template = self.bodies[k].template as usize;
+        Some(norm(delta) + b * self.radius[template])
     }
 
     /// The node at `x` as seen from `body`'s template, if the body has a frame.
@@ -373,6 +572,73 @@ impl TemplateView<'_> {
     }
 }
 
+/// A pose's placement `x = origin + A t`: `A = s^2 (A^-1)^T` for a rotation times `s`.
+fn placement(pose: &RigidPose) -> ([f64; 3], Matrix) {
+    let s2 = pose.scale * pose.scale;
+    let a = std::array::from_fn(|i| std::array::from_fn(|j| s2 * pose.to_template[j][i]));
+    (pose.origin, a)
+}
+
+/// `m v`.
+fn apply(m: &Matrix, v: [f64; 3]) -> [f64; 3] {
+    m.map(|row| dot(row, v))
+}
+
+/// `m n`.
+fn product(m: &Matrix, n: &Matrix) -> Matrix {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| m[i][k] * n[k][j]).sum()))
+}
+
+/// The node run of `body` (its template `template`, its first face `first_triangle`): its
+/// surface nodes consecutive, their global ids consecutive, each a corner of one of its
+/// faces; `None` otherwise.
+fn node_run(
+    surface: &ContactSurface,
+    nodes: Option<std::ops::Range<usize>>,
+    template: &RigidTemplate,
+    first_triangle: usize,
+) -> Option<NodeRun> {
+    let nodes = nodes.filter(|r| !r.is_empty())?;
+    let (start, len) = (nodes.start, nodes.len());
+    let first = surface.surface_nodes[start];
+    if !(0..len).all(|i| surface.surface_nodes[start + i] == first + i) {
+        return None;
+    }
+    let mut corner = vec![false; len];
+    let faces = first_triangle..first_triangle + template.triangles.len();
+    for &g in surface.triangles[faces].iter().flatten() {
+        if let Some(c) = g.checked_sub(first).and_then(|i| corner.get_mut(i)) {
+            *c = true;
+        }
+    }
+    corner
+        .iter()
+        .all(|&c| c)
+        .then_some(NodeRun { start, len, first })
+}
+
+/// The surface nodes not in a node run, as increasing runs of at most `CHUNK`.
+fn scanned_nodes(
+    surface: &ContactSurface,
+    slot: &[u32],
+    node_runs: &[Option<NodeRun>],
+) -> Vec<std::ops::Range<usize>> {
+    let in_run = |k: usize| {
+        let body = surface.node_body[k] as usize;
+        slot.get(body)
+            .filter(|&&s| s != NO_FRAME)
+            .is_some_and(|&s| node_runs[s as usize].is_some())
+    };
+    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+    for k in (0..surface.surface_nodes.len()).filter(|&k| !in_run(k)) {
+        match runs.last_mut() {
+            Some(r) if r.end == k && r.len() < CHUNK => r.end = k + 1,
+            _ => runs.push(k..k + 1),
+        }
+    }
+    runs
+}
+
 /// The faces of `surface` whose body has no frame in `slot`, as increasing runs of at most
 /// `CHUNK` consecutive faces.
 fn unframed_faces(surface: &ContactSurface, slot: &[u32]) -> Vec<std::ops::Range<usize>> {
@@ -393,8 +659,14 @@ fn unframed_faces(surface: &ContactSurface, slot: &[u32]) -> Vec<std::ops::Range
 /// Per body id, the range of its faces in `surface` when they are consecutive (`None`
 /// when they are not; an empty range when it has none).
 fn face_ranges(surface: &ContactSurface) -> Vec<Option<std::ops::Range<usize>>> {
-    let mut ranges: Vec<Option<std::ops::Range<usize>>> = vec![Some(0..0); surface.n_bodies()];
-    for (t, &b) in surface.triangle_body.iter().enumerate() {
+    consecutive_ranges(&surface.triangle_body, surface.n_bodies())
+}
+
+/// Per body id below `n_bodies`, the range of the entries of `owners` that name it when
+/// they are consecutive (`None` when they are not; an empty range when there are none).
+fn consecutive_ranges(owners: &[u32], n_bodies: usize) -> Vec<Option<std::ops::Range<usize>>> {
+    let mut ranges: Vec<Option<std::ops::Range<usize>>> = vec![Some(0..0); n_bodies];
+    for (t, &b) in owners.iter().enumerate() {
         let r = &mut ranges[b as usize];
         *r = match r.take() {
             Some(r) if r.is_empty() => Some(t..t + 1),
@@ -529,6 +801,94 @@ mod tests {
         )
         .unwrap();
         assert_eq!(frames.unframed_faces(), &[4..4 + CHUNK, 4 + CHUNK..1004]);
+    }
+
+    /// A pose `x = origin + s R t` turned by the unit quaternion `q` (need not be normalised).
+    fn turned_pose(q: [f64; 4], s: f64, origin: [f64; 3]) -> RigidPose {
+        let r = rotation_matrix(q);
+        RigidPose {
+            to_template: std::array::from_fn(|i| std::array::from_fn(|j| r[j][i] / s)),
+            origin,
+            scale: s,
+        }
+    }
+
+    /// The drift bound from the poses holds every node of the body: references taken at a
+    /// refresh under one state of a mean motion (an axial squeeze), nodes moved by another
+    /// pose and the motion gone on, each node's drift from where its reference is expected
+    /// is within the bound; and a pure shift without mean motion is bounded by the shift.
+    #[test]
+    fn the_drift_bound_holds_every_node_of_the_body() {
+        use crate::mean_motion::MeanMotion;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let template = unit_tetrahedron();
+        let mut surface = ContactSurface::default();
+        surface
+            .push_body(0, &template.triangles, &[0, 1, 2, 3], &[1.0; 4])
+            .unwrap();
+        let rate = [[0.0; 3], [0.0; 3], [0.0, 0.0, -0.3]];
+        let motion = MeanMotion::continued(None, [0.1, -0.2, 0.5], rate, 0.0);
+        let mut tight = 0;
+        for case in 0..500 {
+            let mut q = || std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let (q0, q1) = (q(), q());
+            let s = rng.random_range(1e-3..1e-2);
+            let o0: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.3..0.3));
+            let shift: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1e-4..1e-4));
+            let turn = rng.random_range(0.0..1e-2);
+            let q1 = std::array::from_fn(|i| q0[i] + turn * q1[i]);
+            let (p0, p1) = (turned_pose(q0, s, o0), turned_pose(q1, s, add(o0, shift)));
+            let place = |p: &RigidPose, t: [f64; 3]| {
+                let a = placement(p).1;
+                add(p.origin, apply(&a, t))
+            };
+            let x0: Vec<[f64; 3]> = template.nodes.iter().map(|&t| place(&p0, t)).collect();
+            let mut frames = RigidFrames::new(
+                &surface,
+                &x0,
+                std::slice::from_ref(&template),
+                &[(0, 0)],
+                (0.0, &[p0]),
+            )
+            .unwrap();
+            let squeezed = case % 2 == 0;
+            let at = |t: f64| motion.since(&IDENTITY, t).filter(|_| squeezed);
+            let (e0, e1) = (at(0.01), at(0.03));
+            frames.refresh_references(&[true], e0.as_ref(), true);
+            frames.set_poses(1.0, &[p1]).unwrap();
+            let bound = frames.drift_bound(0, e1.as_ref()).unwrap();
+            let mut largest: f64 = 0.0;
+            for (&t, &y0) in template.nodes.iter().zip(&x0) {
+                let reference = e0.as_ref().map_or(y0, |e| e.reference(y0));
+                let expected = e1.as_ref().map_or(reference, |e| e.position(reference));
+                let drift = norm(sub(place(&p1, t), expected));
+                assert!(
+                    drift <= bound * (1.0 + 1e-9),
+                    "case {case}: {drift} > {bound}"
+                );
+                largest = largest.max(drift);
+            }
+            tight += usize::from(bound <= 3.0 * largest);
+        }
+        assert!(
+            tight > 400,
+            "{tight} of 500 bounds within three times the largest drift"
+        );
+        // A pure shift: the bound is the shift.
+        let p0 = shifted_pose(0.0);
+        let mut frames = RigidFrames::new(
+            &surface,
+            &template.nodes,
+            std::slice::from_ref(&template),
+            &[(0, 0)],
+            (0.0, &[p0]),
+        )
+        .unwrap();
+        frames.reset_references(true);
+        frames.set_poses(1.0, &[shifted_pose(2e-3)]).unwrap();
+        assert!((frames.drift_bound(0, None).unwrap() - 2e-3).abs() < 1e-18);
+        frames.reset_references(false);
+        assert_eq!(frames.drift_bound(0, None), None);
     }
 
     /// The frames stand aside when a body's corners are off their pose by more than the

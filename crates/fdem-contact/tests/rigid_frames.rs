@@ -6,7 +6,7 @@
 mod common;
 
 use common::{linear_sphere, model_for, random_rotation, rng};
-use fdem_contact::{ContactModel, ContactParams, RigidPose, RigidTemplate};
+use fdem_contact::{ContactModel, ContactParams, RigidMotion, RigidPose, RigidTemplate};
 use fdem_core::geometry::rotation_matrix;
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
 use rand::RngExt;
@@ -155,6 +155,17 @@ fn models(cluster: &Cluster) -> (ContactModel, ContactModel, MeshAssembly) {
     (plain, framed, assembly)
 }
 
+/// Each body's motion as a caller gives it: its nodes' largest speed in `v` (the eight
+/// bodies' nodes in order), with room, as the bound.
+fn motions(v: &[[f64; 3]], room: f64) -> Vec<RigidMotion> {
+    v.chunks(v.len() / 8)
+        .map(|body| RigidMotion {
+            speed_bound: room * body.iter().map(|&a| common::norm(a)).fold(0.0, f64::max),
+            finite: true,
+        })
+        .collect()
+}
+
 #[test]
 fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
     let cluster = Cluster::new(3);
@@ -170,6 +181,12 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
             .map(|(a, b)| common::scale(common::sub(*a, *b), 1e6))
             .collect();
         framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        // With their motions on every other step: the scan need not read their nodes.
+        if step % 2 == 0 {
+            framed
+                .set_rigid_motions(t, &motions(&v, 1.0 + 1e-9))
+                .unwrap();
+        }
         let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();
         let b = framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap();
@@ -186,6 +203,48 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
     );
     assert!(max_contacts >= 10, "{max_contacts} contacts");
     assert!(plain.rebuild_count() + plain.refresh_count() > 2);
+    // The poses' drift bounds renewed the lists when the nodes did.
+    assert_eq!(plain.rebuild_count(), framed.rebuild_count());
+    assert_eq!(plain.refresh_count(), framed.refresh_count());
+}
+
+/// The scan takes a body's motion for its nodes' speeds: a node moving too fast for the
+/// depth limit (at the limit's cap) is refused when the scan reads the nodes (no motion, or
+/// a bound that says so) and not when the caller's bound says the body is slow. A caller
+/// must give a true bound.
+#[test]
+fn the_scan_takes_the_motions_bound_for_the_nodes_speeds() {
+    let cluster = Cluster::new(6);
+    let (_, framed, assembly) = models(&cluster);
+    let n = assembly.n_nodes();
+    let x = cluster.positions(0);
+    let dt = 1e-6;
+    let limit = framed.depth_limit();
+    // One node of body 5 at 0.6 depth limits per step: twice that passes the bound.
+    let mut v = vec![[0.0; 3]; n];
+    v[5 * (n / 8) + 7] = [0.6 * limit / dt, 0.0, 0.0];
+    let refused = |motions: Option<Vec<RigidMotion>>| {
+        let mut model = framed.clone();
+        model.set_rigid_poses(0.0, &cluster.poses(0)).unwrap();
+        if let Some(m) = motions {
+            model.set_rigid_motions(0.0, &m).unwrap();
+        }
+        let mut f = vec![[0.0; 3]; n];
+        match model.add_forces(&x, &v, 0.0, dt, &mut f) {
+            Ok(_) => {
+                assert!(model.rigid_frames_in_use());
+                false
+            }
+            Err(e) => {
+                let message = e.to_string();
+                assert!(message.contains("twice its speed"), "{message}");
+                true
+            }
+        }
+    };
+    assert!(refused(None));
+    assert!(refused(Some(motions(&v, 1.0))));
+    assert!(!refused(Some(motions(&v, 0.5))));
 }
 
 #[test]

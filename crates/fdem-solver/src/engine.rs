@@ -203,6 +203,8 @@ pub struct Simulation {
     last_powers: Powers,
     /// The rigid bodies' poses handed to the contact's frames (scratch).
     pose_scratch: Vec<fdem_contact::RigidPose>,
+    /// The rigid bodies' motions handed to the contact's scan (scratch).
+    motion_scratch: Vec<fdem_contact::RigidMotion>,
     /// Whether the nodes were open for editing since the last force evaluation
     /// ([`Simulation::nodes_mut`]).
     rigid_nodes_edited: bool,
@@ -252,6 +254,7 @@ impl Simulation {
             friction_dissipated: 0.0,
             last_powers: Powers::default(),
             pose_scratch: Vec::new(),
+            motion_scratch: Vec::new(),
             rigid_nodes_edited: false,
         };
         // Finite inputs can still give a state that is not (a rigid body's spin turned
@@ -822,6 +825,11 @@ impl Simulation {
             contact
                 .model_mut()
                 .set_rigid_poses(self.time, &self.pose_scratch)?;
+            // Their motions of this time, so the contact's scan need not read their nodes.
+            self.rigid.motions(&mut self.motion_scratch);
+            contact
+                .model_mut()
+                .set_rigid_motions(self.time, &self.motion_scratch)?;
         }
         let state = &mut self.state;
         let view = NodeView {

@@ -22,6 +22,7 @@
 //! `omega` does.
 
 use crate::SolverError;
+use fdem_core::geometry::{is_finite, norm};
 use fdem_core::number::Number;
 use nalgebra::{Matrix3, SymmetricEigen, Unit, UnitQuaternion, Vector3};
 
@@ -306,7 +307,17 @@ pub(crate) struct RigidPart {
     pub(crate) template: Option<TemplateMap>,
     force: [f64; 3],
     torque: [f64; 3],
+    /// The largest distance of a node from the centre of mass (m).
+    reach: f64,
 }
+
+/// Relative room a node speed bound leaves for the round-off of placing the nodes (a few
+/// units of the last place of the positions and velocities).
+const SPEED_ROOM: f64 = 1e-12;
+
+/// Below this size a body's position, velocity and spin cannot overflow a node's position
+/// or velocity.
+const FAR_FROM_OVERFLOW: f64 = 1e300;
 
 /// How a rigid body's template lies in the body's principal frame: offsets `o = shift +
 /// to_offsets t` of the template coordinates `t`, `to_offsets` a rotation times the
@@ -352,10 +363,12 @@ impl RigidPart {
         inertia: RigidInertia,
         state: RigidState,
     ) -> Self {
+        let reach = offsets.iter().map(|&o| norm(o)).fold(0.0, f64::max);
         RigidPart {
             body,
             first,
             offsets,
+            reach,
             inertia,
             reference: state.position,
             state,
@@ -422,6 +435,25 @@ impl RigidPart {
         };
         for (vi, xi) in v.iter_mut().zip(x) {
             *vi = motion.velocity_at(*xi, self.state.position);
+        }
+    }
+
+    /// The body's motion as the contact model's per-step scan takes it: a node at `r`
+    /// from the centre moves at `V + omega x r`, so `|V| + |omega| |r|_max` bounds every
+    /// node's speed (room added for the round-off of placing it: `r` is placed as `x - X`);
+    /// a finite position, velocity and spin far from overflow make every node's position
+    /// and velocity finite.
+    fn motion(&self) -> fdem_contact::RigidMotion {
+        let (x, v) = (self.state.position, self.state.velocity);
+        let omega = self.state.angular_velocity(&self.inertia);
+        let r = self.reach + SPEED_ROOM * (self.reach + norm(x));
+        let speed = norm(v) + norm(omega) * r;
+        let finite = [x, v, omega].iter().all(|&a| is_finite(a))
+            && norm(x) + self.reach < FAR_FROM_OVERFLOW
+            && speed < FAR_FROM_OVERFLOW;
+        fdem_contact::RigidMotion {
+            speed_bound: speed * (1.0 + SPEED_ROOM),
+            finite,
         }
     }
 
@@ -502,6 +534,20 @@ impl RigidBodies {
             let r = p.nodes();
             p.place_nodes(&mut x[r.clone()], &mut v[r]);
         }
+    }
+
+    /// The motions of the bodies with a template map, in body order, into `out` (the
+    /// contact model's scan, `ContactModel::set_rigid_motions`).
+    pub(crate) fn motions(&self, out: &mut Vec<fdem_contact::RigidMotion>) {
+        use rayon::prelude::*;
+        out.clear();
+        out.par_extend(
+            self.parts
+                .par_iter()
+                .with_min_len(SERIAL_BODIES)
+                .filter(|p| p.template.is_some())
+                .map(RigidPart::motion),
+        );
     }
 
     /// The poses of the bodies with a template map, in body order, into `out` (the
@@ -954,6 +1000,38 @@ mod tests {
         let state = RigidState::new(&inertia, x, [0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3]);
         // Node ranges in body order, as a simulation numbers them (empty here).
         RigidPart::new(body, body, Vec::new(), inertia, state)
+    }
+
+    proptest! {
+        /// The motion handed to the contact's scan bounds the speed of every node as the
+        /// body places it, far from the origin too, and is finite exactly when the nodes
+        /// are; a body with a spin that is not a number is not finite.
+        #[test]
+        fn the_motion_bounds_every_placed_node_speed(
+            offsets in prop::collection::vec(prop::array::uniform3(-0.02f64..0.02), 1..40),
+            x in prop::array::uniform3(-1e3f64..1e3),
+            v in prop::array::uniform3(-5.0f64..5.0),
+            w in prop::array::uniform3(-300.0f64..300.0),
+            q in prop::array::uniform4(-1.0f64..1.0),
+        ) {
+            prop_assume!(q.iter().map(|a| a * a).sum::<f64>() > 1e-2);
+            let inertia = RigidInertia::new(1.0, [[0.1, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 0.0, 0.3]])
+                .expect("valid inertia");
+            let n = offsets.len();
+            let state = RigidState::new(&inertia, x, v, q, w);
+            let mut part = RigidPart::new(0, 0, offsets, inertia, state);
+            let (mut xs, mut vs) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+            part.place_nodes(&mut xs, &mut vs);
+            let motion = part.motion();
+            prop_assert!(motion.finite);
+            let fastest = vs.iter().map(|&a| norm(a)).fold(0.0, f64::max);
+            prop_assert!(fastest <= motion.speed_bound, "{fastest} > {}", motion.speed_bound);
+            // Not a loose bound: the spin's and the shift's share at most.
+            let spin = norm(part.state.angular_velocity(&part.inertia));
+            prop_assert!(motion.speed_bound <= (norm(v) + spin * part.reach) * (1.0 + 1e-6));
+            part.state.body_momentum[1] = f64::NAN;
+            prop_assert!(!part.motion().finite);
+        }
     }
 
     /// `[r]x`, the cross-product matrix.

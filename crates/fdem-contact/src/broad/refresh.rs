@@ -251,12 +251,13 @@ impl RefreshReach {
 impl BroadPhase {
     /// Per body, whether one of its surface nodes lies farther than `half` from where its
     /// reference position is expected (the reference itself without mean motion); and how
-    /// many surface nodes those bodies have.
+    /// many surface nodes those bodies have. The nodes of bodies marked in `clean` (per
+    /// body id: known to be within `half`) are not read.
     pub(crate) fn drifted_bodies(
         &self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
-        half: f64,
+        (half, clean): (f64, &[bool]),
         expected: Option<&Expected>,
     ) -> (Vec<bool>, usize) {
         let n_bodies = surface.n_bodies();
@@ -269,6 +270,7 @@ impl BroadPhase {
                 for k in nodes {
                     let body = surface.node_body[k];
                     if bodies.last() != Some(&body)
+                        && !clean.get(body as usize).is_some_and(|&c| c)
                         && drift2(
                             expected,
                             positions[surface.surface_nodes[k]],
