@@ -24,6 +24,8 @@
 //!   checksummed binary file, read back bit for bit (run checkpoints).
 //! - **The plot style** ([`plot`]): palette, fonts, chart layout, axes, legend and series
 //!   for the SVG figures.
+//! - **Huge pages** ([`huge_pages`]): the system allocator asking for transparent huge
+//!   pages for large blocks, for the binaries that run large models.
 //!
 //! # What it does not own
 //! No physics and no project types: no meshes (`fdem-mesh`), element kernels or their
@@ -58,6 +60,7 @@
 pub mod fs;
 pub mod geometry;
 pub mod hash;
+pub mod huge_pages;
 pub mod number;
 pub mod plot;
 pub mod run_id;

@@ -14,10 +14,13 @@
 //! cell size and box enlargement (m), the FNV-1a hash of the node positions' bits, the
 //! refreshes and the mean milliseconds of a step with one, and the mean milliseconds of
 //! all steps. The platens keep the motion they had at the
-//! checkpoint, as in shear.
+//! checkpoint, as in shear. Large blocks are on huge pages, as in the `fdem` binary.
 use fdem_triaxial::{PreparedSpecimen, TestModel};
 use std::path::Path;
 use std::time::Instant;
+
+#[global_allocator]
+static ALLOCATOR: fdem_core::huge_pages::HugePages = fdem_core::huge_pages::HugePages;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
