@@ -1402,7 +1402,7 @@ impl ContactModel {
         // candidate lists.
         loop {
             let guards = self.guards(v_max, dt);
-            match self.narrow_phase(positions, velocities, dt, guards) {
+            match self.narrow_phase(positions, velocities, (time, dt), guards) {
                 Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
@@ -1734,9 +1734,10 @@ impl ContactModel {
         &mut self,
         positions: &[[f64; 3]],
         velocities: &[[f64; 3]],
-        dt: f64,
+        (time, dt): (f64, f64),
         guards: Guards,
     ) -> Result<(), ContactError> {
+        let frames = active_frames(&self.rigid_frames, self.frames_active);
         let ctx = Ctx {
             surface: &self.surface,
             broad: &self.broad,
@@ -1755,7 +1756,8 @@ impl ContactModel {
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,
             sheets: &self.sheets,
-            frames: active_frames(&self.rigid_frames, self.frames_active),
+            frames,
+            motions: frames.and_then(|f| f.motions_at(time)),
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
         };

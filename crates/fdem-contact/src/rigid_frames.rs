@@ -109,6 +109,15 @@ pub struct RigidMotion {
     pub speed_bound: f64,
     /// Whether every node position and velocity of the body is finite.
     pub finite: bool,
+    /// The velocity of `centre` (m/s), the body's spin (rad/s) and the centre (m): every
+    /// node's velocity is `fdem_core::geometry::rigid_velocity` of these and its position,
+    /// bit for bit (the narrow phase computes a face's velocity from them instead of
+    /// gathering its corners').
+    pub velocity: [f64; 3],
+    /// The body's angular velocity (rad/s).
+    pub angular_velocity: [f64; 3],
+    /// The point of the body that moves at `velocity` (m).
+    pub centre: [f64; 3],
 }
 
 /// Where a framed body's nodes had their reference positions: `c + G t` for template
@@ -419,6 +428,17 @@ impl RigidFrames {
         self.motions.extend_from_slice(motions);
         self.motions_time = Some(time);
         Ok(())
+    }
+
+    /// Body `body`'s motion among `motions` (of this evaluation), if it has a frame.
+    #[inline(always)]
+    pub(crate) fn motion_of<'m>(
+        &self,
+        body: u32,
+        motions: &'m [RigidMotion],
+    ) -> Option<&'m RigidMotion> {
+        let k = *self.slot.get(body as usize)?;
+        motions.get(k as usize)
     }
 
     /// The caller's motions if they are of `time`.

@@ -39,6 +39,22 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
+/// The velocity of the point `x` of a rigid body whose point `centre` moves at `velocity`
+/// and which spins at `angular_velocity`: `velocity + angular_velocity x (x - centre)`, in
+/// this operation order (the solver places rigid bodies' node velocities with it, and the
+/// contact model recomputes them from the same inputs, bit for bit).
+#[inline(always)]
+pub fn rigid_velocity(
+    velocity: [f64; 3],
+    angular_velocity: [f64; 3],
+    centre: [f64; 3],
+    x: [f64; 3],
+) -> [f64; 3] {
+    let r = [x[0] - centre[0], x[1] - centre[1], x[2] - centre[2]];
+    let u = cross(angular_velocity, r);
+    [velocity[0] + u[0], velocity[1] + u[1], velocity[2] + u[2]]
+}
+
 /// Squared length `a · a`.
 #[inline]
 pub fn norm2(a: [f64; 3]) -> f64 {

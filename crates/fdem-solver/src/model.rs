@@ -97,10 +97,7 @@ impl InitialMotion {
     /// The velocity of the point `x` of a body moving with this motion about `centre`:
     /// `v + omega x (x - centre)` (m/s).
     pub fn velocity_at(&self, x: [f64; 3], centre: [f64; 3]) -> [f64; 3] {
-        let r = [x[0] - centre[0], x[1] - centre[1], x[2] - centre[2]];
-        let u = fdem_core::geometry::cross(self.angular_velocity, r);
-        let v = self.velocity;
-        [v[0] + u[0], v[1] + u[1], v[2] + u[2]]
+        fdem_core::geometry::rigid_velocity(self.velocity, self.angular_velocity, centre, x)
     }
 }
 

@@ -454,6 +454,11 @@ impl RigidPart {
         fdem_contact::RigidMotion {
             speed_bound: speed * (1.0 + SPEED_ROOM),
             finite,
+            // The inputs `place_velocities` gives its nodes (the same spin, computed from
+            // the same state).
+            velocity: v,
+            angular_velocity: omega,
+            centre: x,
         }
     }
 
