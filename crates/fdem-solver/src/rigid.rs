@@ -860,47 +860,8 @@ impl RigidBodies {
                 )
             })
             .collect();
-        let apply = |x: &[f64], y: &mut [f64]| {
-            // Velocities of the bodies from the mass-weighted coordinates.
-            let v = |j: usize| {
-                let (s, w) = &scales[j];
-                let lin = Vector3::new(x[6 * j], x[6 * j + 1], x[6 * j + 2]) * *s;
-                let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
-                (lin, ang)
-            };
-            let mut force = vec![Vector3::zeros(); 2 * self.parts.len()];
-            let arm = |j: usize, point: [f64; 3]| {
-                let c = self.parts[j].state.position;
-                Vector3::new(point[0] - c[0], point[1] - c[1], point[2] - c[2])
-            };
-            for s in springs {
-                let a = self.part_of(s.body).map(|j| (j, arm(j, s.point)));
-                let b = s
-                    .other
-                    .and_then(|(body, point)| self.part_of(body).map(|j| (j, arm(j, point))));
-                let rate = |end: Option<(usize, Vector3<f64>)>| {
-                    end.map_or(Vector3::zeros(), |(j, r)| {
-                        let (lin, ang) = v(j);
-                        lin + ang.cross(&r)
-                    })
-                };
-                let f = (rate(a) - rate(b)) * coefficient(s);
-                if let Some((j, r)) = a {
-                    force[2 * j] += f;
-                    force[2 * j + 1] += r.cross(&f);
-                }
-                if let Some((j, r)) = b {
-                    force[2 * j] -= f;
-                    force[2 * j + 1] -= r.cross(&f);
-                }
-            }
-            for (j, (s, w)) in scales.iter().enumerate() {
-                let lin = force[2 * j] * *s;
-                let ang = w * force[2 * j + 1];
-                y[6 * j..6 * j + 3].copy_from_slice(lin.as_slice());
-                y[6 * j + 3..6 * j + 6].copy_from_slice(ang.as_slice());
-            }
-        };
+        let network = Network::new(self, springs, &coefficient);
+        let apply = |x: &[f64], y: &mut [f64]| network.apply(&scales, x, y);
         Some(lanczos_largest(n, iterations, apply))
     }
 
@@ -954,6 +915,117 @@ fn lanczos_largest(n: usize, iterations: usize, apply: impl Fn(&[f64], &mut [f64
         .copied()
         .fold(0.0, f64::max)
 }
+
+/// The springs of a network estimate with their ends resolved once (the body's index and
+/// the arm from its centre), and per body the springs acting on it in spring order: the
+/// operator's forces are then summed body by body, in parallel, in the order a serial pass
+/// over the springs adds them, so the estimate has the same bits.
+struct Network {
+    /// Per spring, its two ends (`None`: a wall or a body that is not rigid) and its
+    /// coefficient.
+    springs: Vec<([Option<(usize, Vector3<f64>)>; 2], f64)>,
+    /// Per body, the start of its entries in `acting` (one more than the bodies).
+    start: Vec<usize>,
+    /// Spring index and end (0: the spring's own body, pushed by `+f`; 1: the other, `-f`).
+    acting: Vec<(u32, u8)>,
+}
+
+impl Network {
+    fn new(bodies: &RigidBodies, springs: &[Spring], coefficient: &dyn Fn(&Spring) -> f64) -> Self {
+        let arm = |j: usize, point: [f64; 3]| {
+            let c = bodies.parts[j].state.position;
+            Vector3::new(point[0] - c[0], point[1] - c[1], point[2] - c[2])
+        };
+        let resolved: Vec<([Option<(usize, Vector3<f64>)>; 2], f64)> = springs
+            .iter()
+            .map(|s| {
+                let a = bodies.part_of(s.body).map(|j| (j, arm(j, s.point)));
+                let b = s
+                    .other
+                    .and_then(|(body, point)| bodies.part_of(body).map(|j| (j, arm(j, point))));
+                ([a, b], coefficient(s))
+            })
+            .collect();
+        // Counting sort of the (spring, end) pairs by body, springs in order within a body.
+        let mut start = vec![0usize; bodies.parts.len() + 1];
+        for (ends, _) in &resolved {
+            for (j, _) in ends.iter().flatten() {
+                start[j + 1] += 1;
+            }
+        }
+        for j in 1..start.len() {
+            start[j] += start[j - 1];
+        }
+        let mut cursor = start.clone();
+        let mut acting = vec![(0u32, 0u8); start[bodies.parts.len()]];
+        for (i, (ends, _)) in resolved.iter().enumerate() {
+            for (end, (j, _)) in ends
+                .iter()
+                .enumerate()
+                .filter_map(|(e, x)| x.map(|x| (e, x)))
+            {
+                acting[cursor[j]] = (i as u32, end as u8);
+                cursor[j] += 1;
+            }
+        }
+        Network {
+            springs: resolved,
+            start,
+            acting,
+        }
+    }
+
+    /// `y = M^-1/2 A M^-1/2 x` over the bodies' six degrees of freedom (`scales`: per
+    /// body `1 / sqrt(m)` and the world-frame `I^-1/2`): each spring's force from the
+    /// stretch rate of its ends, then per body the sum of its springs' forces and moments.
+    fn apply(&self, scales: &[(f64, Matrix3<f64>)], x: &[f64], y: &mut [f64]) {
+        use rayon::prelude::*;
+        // Velocities of the bodies from the mass-weighted coordinates.
+        let v = |j: usize| {
+            let (s, w) = &scales[j];
+            let lin = Vector3::new(x[6 * j], x[6 * j + 1], x[6 * j + 2]) * *s;
+            let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
+            (lin, ang)
+        };
+        let rate = |end: Option<(usize, Vector3<f64>)>| {
+            end.map_or(Vector3::zeros(), |(j, r)| {
+                let (lin, ang) = v(j);
+                lin + ang.cross(&r)
+            })
+        };
+        let forces: Vec<Vector3<f64>> = self
+            .springs
+            .par_iter()
+            .with_min_len(SPRINGS_PER_TASK)
+            .map(|&([a, b], c)| (rate(a) - rate(b)) * c)
+            .collect();
+        y.par_chunks_mut(6)
+            .with_min_len(SERIAL_BODIES)
+            .enumerate()
+            .for_each(|(j, yj)| {
+                let (mut force, mut moment) = (Vector3::zeros(), Vector3::zeros());
+                for &(i, end) in &self.acting[self.start[j]..self.start[j + 1]] {
+                    let f = forces[i as usize];
+                    let Some((_, r)) = self.springs[i as usize].0[end as usize] else {
+                        continue;
+                    };
+                    if end == 0 {
+                        force += f;
+                        moment += r.cross(&f);
+                    } else {
+                        force -= f;
+                        moment -= r.cross(&f);
+                    }
+                }
+                let (s, w) = &scales[j];
+                yj[..3].copy_from_slice((force * *s).as_slice());
+                yj[3..].copy_from_slice((w * moment).as_slice());
+            });
+    }
+}
+
+/// Springs per parallel task of the network operator.
+const SPRINGS_PER_TASK: usize = 4096;
 
 /// A pass over one rigid body with its ranges of the node positions, velocities and
 /// forces; false reports a failure (the pass still runs over every body).
