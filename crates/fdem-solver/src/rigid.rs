@@ -921,9 +921,8 @@ fn lanczos_largest(n: usize, iterations: usize, apply: impl Fn(&[f64], &mut [f64
 /// operator's forces are then summed body by body, in parallel, in the order a serial pass
 /// over the springs adds them, so the estimate has the same bits.
 struct Network {
-    /// Per spring, its two ends (`None`: a wall or a body that is not rigid) and its
-    /// coefficient.
-    springs: Vec<([Option<(usize, Vector3<f64>)>; 2], f64)>,
+    /// Per spring, its two ends and its coefficient.
+    springs: Vec<(SpringEnds, f64)>,
     /// Per body, the start of its entries in `acting` (one more than the bodies).
     start: Vec<usize>,
     /// Spring index and end (0: the spring's own body, pushed by `+f`; 1: the other, `-f`).
@@ -936,7 +935,7 @@ impl Network {
             let c = bodies.parts[j].state.position;
             Vector3::new(point[0] - c[0], point[1] - c[1], point[2] - c[2])
         };
-        let resolved: Vec<([Option<(usize, Vector3<f64>)>; 2], f64)> = springs
+        let resolved: Vec<(SpringEnds, f64)> = springs
             .iter()
             .map(|s| {
                 let a = bodies.part_of(s.body).map(|j| (j, arm(j, s.point)));
@@ -1023,6 +1022,10 @@ impl Network {
             });
     }
 }
+
+/// A spring's two ends: the body's index and the arm from its centre to the spring's point
+/// (`None`: a wall or a body that is not rigid).
+type SpringEnds = [Option<(usize, Vector3<f64>)>; 2];
 
 /// Springs per parallel task of the network operator.
 const SPRINGS_PER_TASK: usize = 4096;
