@@ -949,14 +949,17 @@ impl ContactModel {
     /// [`ContactError::LengthMismatch`] for another number of poses; `InconsistentSurface`
     /// when no frames were set.
     pub fn set_rigid_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
-        let frames = self
-            .rigid_frames
+        self.frames_for("rigid poses")?.set_poses(time, poses)
+    }
+
+    /// The rigid frames, for giving them `what`; an error when none were set.
+    fn frames_for(&mut self, what: &str) -> Result<&mut RigidFrames, ContactError> {
+        self.rigid_frames
             .as_mut()
-            .ok_or(ContactError::InconsistentSurface {
-                what: "rigid poses given before the rigid frames".into(),
+            .ok_or_else(|| ContactError::InconsistentSurface {
+                what: format!("{what} given before the rigid frames"),
                 fix: "call set_rigid_frames first",
-            })?;
-        frames.set_poses(time, poses)
+            })
     }
 
     /// The rigid bodies' motions at `time` (a bound of their nodes' speeds, whether their
@@ -974,14 +977,7 @@ impl ContactModel {
         time: f64,
         motions: &[RigidMotion],
     ) -> Result<(), ContactError> {
-        let frames = self
-            .rigid_frames
-            .as_mut()
-            .ok_or(ContactError::InconsistentSurface {
-                what: "rigid motions given before the rigid frames".into(),
-                fix: "call set_rigid_frames first",
-            })?;
-        frames.set_motions(time, motions)
+        self.frames_for("rigid motions")?.set_motions(time, motions)
     }
 
     /// Whether the last evaluation met the rigid bodies' faces in their templates' frames.

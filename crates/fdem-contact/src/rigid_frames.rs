@@ -649,11 +649,16 @@ fn scanned_nodes(
             .filter(|&&s| s != NO_FRAME)
             .is_some_and(|&s| node_runs[s as usize].is_some())
     };
+    chunked_runs((0..surface.surface_nodes.len()).filter(|&k| !in_run(k)))
+}
+
+/// Increasing `indices` as runs of consecutive indices, each of at most `CHUNK`.
+fn chunked_runs(indices: impl Iterator<Item = usize>) -> Vec<std::ops::Range<usize>> {
     let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
-    for k in (0..surface.surface_nodes.len()).filter(|&k| !in_run(k)) {
+    for i in indices {
         match runs.last_mut() {
-            Some(r) if r.end == k && r.len() < CHUNK => r.end = k + 1,
-            _ => runs.push(k..k + 1),
+            Some(r) if r.end == i && r.len() < CHUNK => r.end = i + 1,
+            _ => runs.push(i..i + 1),
         }
     }
     runs
@@ -666,14 +671,7 @@ fn unframed_faces(surface: &ContactSurface, slot: &[u32]) -> Vec<std::ops::Range
         slot.get(surface.triangle_body[t] as usize)
             .is_some_and(|&s| s != NO_FRAME)
     };
-    let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
-    for t in (0..surface.triangles.len()).filter(|&t| !framed(t)) {
-        match runs.last_mut() {
-            Some(r) if r.end == t && r.len() < CHUNK => r.end = t + 1,
-            _ => runs.push(t..t + 1),
-        }
-    }
-    runs
+    chunked_runs((0..surface.triangles.len()).filter(|&t| !framed(t)))
 }
 
 /// Per body id, the range of its faces in `surface` when they are consecutive (`None`
