@@ -373,18 +373,24 @@ impl RigidFrames {
 
     /// The poses at `time`, one per rigid body in the order the frames were given.
     pub(crate) fn set_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
-        if poses.len() != self.poses.len() {
-            return Err(ContactError::LengthMismatch {
-                array: "rigid poses",
-                expected: self.poses.len(),
-                found: poses.len(),
-                reason: "one pose per rigid body given to set_rigid_frames",
-            });
-        }
+        self.one_per_body("rigid poses", poses.len())?;
         debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
         self.poses.copy_from_slice(poses);
         self.time = Some(time);
         Ok(())
+    }
+
+    /// Refuses `found` entries of `array` for another number than one per framed body.
+    fn one_per_body(&self, array: &'static str, found: usize) -> Result<(), ContactError> {
+        if found == self.bodies.len() {
+            return Ok(());
+        }
+        Err(ContactError::LengthMismatch {
+            array,
+            expected: self.bodies.len(),
+            found,
+            reason: "one entry per rigid body given to set_rigid_frames",
+        })
     }
 
     /// Whether the frames may stand in for the world planes and screen the feet in an
@@ -416,14 +422,7 @@ impl RigidFrames {
         time: f64,
         motions: &[RigidMotion],
     ) -> Result<(), ContactError> {
-        if motions.len() != self.bodies.len() {
-            return Err(ContactError::LengthMismatch {
-                array: "rigid motions",
-                expected: self.bodies.len(),
-                found: motions.len(),
-                reason: "one motion per rigid body given to set_rigid_frames",
-            });
-        }
+        self.one_per_body("rigid motions", motions.len())?;
         self.motions.clear();
         self.motions.extend_from_slice(motions);
         self.motions_time = Some(time);
