@@ -23,6 +23,13 @@
 //!   artefact, discarded and counted ([`ContactReport::discarded_sheet_hits`]). The
 //!   closest-face rule that goes with them holds for every body: a face of the same body
 //!   that covers the node from the front, nearer than the hit, means the node is outside.
+//! - **Rigid bodies' frames** ([`ContactModel::set_rigid_frames`], module `rigid_frames`):
+//!   a caller whose rigid bodies' faces are placed instances of templates gives the
+//!   templates, and before each evaluation the bodies' poses ([`RigidPose`]) and motions
+//!   ([`RigidMotion`]). The plane filter and the foot screen then meet those faces in the
+//!   template's frame, the per-step scan bounds the bodies' drift and speed from poses and
+//!   motions instead of reading their nodes, and a face's velocity comes from its body's
+//!   motion; every contact and force is the same, bit for bit, as without them.
 //! - **Reactions**: equal and opposite on the face, spread to its three nodes by the
 //!   barycentric weights of the contact point, so linear momentum is conserved to
 //!   round-off. The normal force then also conserves angular momentum (it acts along the
