@@ -5,7 +5,9 @@
 //! cell), and each triangle visits the cells its enlarged box overlaps: a node of another
 //! body in those cells whose position lies in the box and within the enlargement of the
 //! triangle itself (the point-triangle distance; the box's corners hold many pairs farther
-//! than that) is a candidate pair. The cell size is half the mean enlarged box (at least an
+//! than that) is a candidate pair if it lies in front of the face within the front reach,
+//! or behind it near enough to its window, the prism where the narrow phase accepts a
+//! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The cell size is half the mean enlarged box (at least an
 //! eighth of the largest), so a box overlaps a few cells of a few nodes each. Cells are
 //! numbered densely (`i + nx (j + ny k)`) when the nodes' region holds at most
 //! [`DENSE_CELLS_PER_NODE`] cells per node, and otherwise through their packed integer
@@ -18,11 +20,15 @@
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
 //! depth limit` apart and still are more than the depth limit apart (each moved less than
-//! `margin / 2`), so no contact within the depth limit can be missed. As soon as one node
+//! `margin / 2`), or the node cannot have entered the face's window ([`window`] has the
+//! bound), so no contact within the depth limit can be missed. As soon as one node
 //! has moved farther, the model either refreshes the pairs of the bodies that drifted
 //! ([`refresh`]: a few rattling particles) or rebuilds everything.
 
 mod refresh;
+mod window;
+
+pub(crate) use window::WindowReach;
 
 use rayon::prelude::*;
 
@@ -160,6 +166,8 @@ pub(crate) struct BroadPhase {
     pub(crate) enlargement: f64,
     /// Reach in front of a face's plane at the last build (m), see [`FRONT_SKINS`].
     pub(crate) front: f64,
+    /// The allowances behind the window reach of the last build ([`window`]).
+    pub(crate) window: WindowReach,
     /// Cell size at the last build (m).
     pub(crate) cell_size: f64,
     /// Surface node positions at the last build.
@@ -292,7 +300,9 @@ const PLANE_PREFILTER_SLACK: f64 = 1e-6;
 
 /// The candidate test of node `x` against a face of another body: within `reach2`
 /// (squared) of the face, and either behind its plane (strictly; outward normal by the
-/// right-hand rule of its corners), or `two_sided`, or within `front2` (squared) of it.
+/// right-hand rule of its corners) and within `window.1` of its window of depth
+/// `window.0` ([`window`]), or `two_sided` (the distance alone), or within `front2`
+/// (squared) of it.
 ///
 /// The plane distance is a lower bound of the distance to the face, so a pair whose plane
 /// distance exceeds its reach (beyond [`PLANE_PREFILTER_SLACK`]) is skipped before the
@@ -302,8 +312,8 @@ const PLANE_PREFILTER_SLACK: f64 = 1e-6;
 fn is_candidate(
     x: [f64; 3],
     face: [[f64; 3]; 3],
-    reach2: f64,
-    front2: f64,
+    (reach2, front2): (f64, f64),
+    window: (f64, f64),
     two_sided: bool,
 ) -> bool {
     use crate::vec3::{cross, dot, norm2, sub};
@@ -316,11 +326,22 @@ fn is_candidate(
     } else {
         front2.min(reach2)
     };
-    if s * s > limit2 * norm2(n) * (1.0 + PLANE_PREFILTER_SLACK) {
+    let n2 = norm2(n);
+    if s * s > limit2 * n2 * (1.0 + PLANE_PREFILTER_SLACK) {
         return false;
     }
     let d2 = distance2_to_triangle(x, face);
-    d2 <= reach2 && (d2 <= front2 || two_sided || behind)
+    if d2 > reach2 {
+        return false;
+    }
+    if two_sided {
+        return true;
+    }
+    if !behind {
+        return d2 <= front2;
+    }
+    let (depth_limit, window_reach) = window;
+    window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach)
 }
 
 #[inline(always)]
@@ -346,6 +367,7 @@ impl BroadPhase {
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
         let reach = skin + depth_limit;
+        self.window = WindowReach::of_build(skin, depth_limit);
         self.reference.clear();
         self.reference
             .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
@@ -495,7 +517,9 @@ impl BroadPhase {
     /// before the next build (every point of the face moves at most half the skin, as
     /// the node does): the box only finds the cells, the distance decides. A node in
     /// front of the face's plane must first cross the face or the sides of the prism
-    /// behind it; see FRONT_SKINS.
+    /// behind it; see FRONT_SKINS. A node behind the plane must be able to reach the
+    /// face's window ([`window`]); the reach depends on the face's shape, so it is
+    /// computed once per triangle.
     fn scan_triangles(
         &mut self,
         frame: Frame,
@@ -507,7 +531,8 @@ impl BroadPhase {
         self.found.resize_with(n_chunks, Vec::new);
         self.found.truncate(n_chunks);
         let e = self.enlargement;
-        let (reach2, front2) = (e * e, self.front * self.front);
+        let reaches = (e * e, self.front * self.front);
+        let window = self.window;
         let (layout, table) = (self.layout, &self.table);
         let boxes = &self.boxes;
         let (cell_start, cell_nodes) = (&self.cell_start, &self.cell_nodes);
@@ -527,6 +552,7 @@ impl BroadPhase {
                 for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
                     let face = ids.map(|i| positions[i]);
                     let sided = two_sided(owner);
+                    let window = (window.depth, window.of_face(face));
                     frame.for_each_cell_within(layout, bx, |c| {
                         let Some(cell) = lookup(layout, table, c) else {
                             return;
@@ -539,7 +565,7 @@ impl BroadPhase {
                         {
                             if body != owner
                                 && in_box(bx, x)
-                                && is_candidate(x, face, reach2, front2, sided)
+                                && is_candidate(x, face, reaches, window, sided)
                             {
                                 pairs.push((
                                     k,

@@ -13,7 +13,7 @@ use crate::broad::{BroadPhase, CHUNK, Candidate};
 use crate::events::{Reason, Rejection};
 use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
-use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle};
+use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle, project_hand};
 use crate::prefetch::prefetch;
 use crate::rigid_frames::{RigidFrames, RigidMotion};
 use crate::sheet::{self, Sheets};
@@ -389,13 +389,18 @@ impl Ctx<'_> {
     }
 
     /// The tunnelling check of node `k` (velocity `v`) against the faces of the group
-    /// within the depth limit of it, when this step needs it: the node may not move
-    /// farther than its reach ([`StepReach`]) relative to a face's centroid in one step.
+    /// whose window holds it (behind the face by at most the depth limit, its foot inside;
+    /// for a sheet, every face within the depth limit of it), when this step needs it: the
+    /// node may not move farther than its reach ([`StepReach`]) relative to a face's
+    /// centroid in one step.
     ///
-    /// A farther face cannot be met in this step (no two nodes approach by more than the
-    /// depth limit in one, [`ContactModel::add_forces`] checks that first), and every face
-    /// within the depth limit is a candidate whatever the last build or refresh, so the
-    /// check does not depend on how many farther candidates the lists hold.
+    /// A node that crosses a face in a step shorter than the reach lands in the window of
+    /// a face of that body (of the crossed one, or beside an edge of a convex body of the
+    /// next one), where this check sees it; a farther face cannot be met in this step (no
+    /// two nodes approach by more than the depth limit in one, [`ContactModel::add_forces`]
+    /// checks that first). Every face whose window holds the node, and every sheet face
+    /// within the depth limit, is a candidate whatever the last build or refresh, so the
+    /// check does not depend on how many other candidates the lists hold.
     ///
     /// [`ContactModel::add_forces`]: crate::ContactModel::add_forces
     fn check_tunnelling(
@@ -409,6 +414,7 @@ impl Ctx<'_> {
         }
         let counterpart = Counterpart::Body(group.body);
         let (reach, _) = self.reach(counterpart);
+        let is_sheet = self.sheets.is_sheet(group.body);
         let limit2 = self.depth_limit * self.depth_limit * (1.0 + PLANE_SLACK);
         // The plane distance bounds the face distance from below: skip the faces beyond
         // the limit by more than the filter's slack (an exact test decides the rest).
@@ -418,7 +424,12 @@ impl Ctx<'_> {
                 continue;
             }
             let face = c.nodes.map(|j| self.positions[j as usize]);
-            if distance2_to_triangle(group.x, face) > limit2 {
+            let watched = if is_sheet {
+                distance2_to_triangle(group.x, face) <= limit2
+            } else {
+                project_hand(group.x, face, self.depth_limit).is_some()
+            };
+            if !watched {
                 continue;
             }
             let [a, b, cc] = c.nodes.map(|j| self.velocities[j as usize]);

@@ -23,10 +23,18 @@
 //! residuals stay within `rho = skin / 2 - g L`, `L` the sum of the refresh's enlargement
 //! and front reach (the longest node-to-face distances the lists cover): the map's
 //! distortion of those distances is paid out of the skin.
-//! [`DriftAllowance::of`] computes `rho`; a full build resets `A` to the identity when `rho`
-//! falls below half of the skin's half.
+//! [`DriftAllowance::of`] computes `rho`; a full build resets `A` to the identity when `g L`
+//! passes [`DISTORTION_FRACTION`] of the skin's half.
 
 use nalgebra::{Matrix3, Vector3};
+
+/// The share of half the skin the mean map's distortion of the lists' reach (`g L`) may
+/// take before a full build resets the map. It bounds `g` for the broad phase's window
+/// reach (`crate::broad::window`, which grows with `g`), keeps the drift allowance at
+/// least seven eighths of half the skin, and in a triaxial shear is reached once the axial
+/// strain since the last full build passes about `skin / (32 L)` (`g` is about twice the
+/// strain).
+pub(crate) const DISTORTION_FRACTION: f64 = 0.125;
 
 /// A 3x3 matrix as rows.
 pub(crate) type Matrix = [[f64; 3]; 3];
@@ -150,7 +158,8 @@ impl DriftAllowance {
     /// The allowance `half - g L` for the largest distortion `largest` seen since the last
     /// full build (`g = 2 d / (1 - d)` bounds the map between any two evaluations of the
     /// epoch when each is within `d` of the build's), with `L` the refresh's reach
-    /// (`length`); exhausted below half of `half`. Without mean motion, exactly `half`.
+    /// (`length`); exhausted once `g L` passes [`DISTORTION_FRACTION`] of `half`. Without
+    /// mean motion, exactly `half`.
     pub(crate) fn of(half: f64, largest: f64, length: f64) -> DriftAllowance {
         if largest == 0.0 {
             return DriftAllowance {
@@ -168,7 +177,7 @@ impl DriftAllowance {
         let drift = half - g * length;
         DriftAllowance {
             drift: drift.max(0.0),
-            exhausted: drift < 0.5 * half,
+            exhausted: g * length > DISTORTION_FRACTION * half,
         }
     }
 }
@@ -207,11 +216,12 @@ mod tests {
     #[test]
     fn the_allowance_is_half_the_skin_without_motion_and_shrinks_with_distortion() {
         assert_eq!(DriftAllowance::of(1.0, 0.0, 10.0).drift, 1.0);
-        let a = DriftAllowance::of(1.0, 0.01, 10.0);
-        let g = 0.02 / 0.99;
+        let a = DriftAllowance::of(1.0, 0.005, 10.0);
+        let g = 0.01 / 0.995;
         assert!((a.drift - (1.0 - 10.0 * g)).abs() < 1e-15);
         assert!(!a.exhausted);
-        assert!(DriftAllowance::of(1.0, 0.03, 10.0).exhausted);
+        // g L = 0.202 > DISTORTION_FRACTION of half.
+        assert!(DriftAllowance::of(1.0, 0.01, 10.0).exhausted);
         assert!(DriftAllowance::of(1.0, 0.6, 0.0).exhausted);
     }
 }

@@ -98,11 +98,12 @@ pub const DEPTH_LIMIT_GROWTH: f64 = 3.0;
 /// through it: the sheet's reach is half the margin. Against a solid face or a wall the
 /// narrow phase sees a contact to the depth limit and refuses one deeper than half of it,
 /// so a node that moved less than half the depth limit relative to the face lands where
-/// its contact is seen: the solid reach is half the depth limit. Pairs outside the
-/// candidate lists are at least the depth limit apart (candidate boxes are enlarged by
-/// margin plus depth limit, and each node drifts less than half the margin between
-/// builds; a partial refresh enlarges its boxes by what the pair's extra relative motion
-/// can add), so they cannot meet while no two nodes approach by more than that in a step.
+/// its contact is seen: the solid reach is half the depth limit. A pair outside the
+/// candidate lists cannot put the node in the face's window (behind it by at most the
+/// depth limit, the foot inside) while every node stays within its drift allowance (the
+/// broad phase's `window` module), and the allowance is checked at every evaluation, so
+/// a step in which no two nodes approach by more than the depth limit cannot hide a
+/// crossing of such a pair either.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct StepReach {
     /// Against a sheet's face (m).
@@ -1164,6 +1165,17 @@ impl ContactModel {
         self.broad.refresh_reaches(self.margin)
     }
 
+    /// How far from the window of `face` (m) a node behind the face's plane remains a
+    /// candidate of it: at the last full build, and at a refresh. The window is the prism
+    /// over the face from its plane to the depth limit behind it, where the narrow phase
+    /// accepts a node; the reach covers the motions the lists allow (the broad phase's
+    /// `window` module has the bound).
+    pub fn candidate_window_reaches(&self, face: [[f64; 3]; 3]) -> (f64, f64) {
+        let build = self.broad.window;
+        let refresh = crate::broad::WindowReach::of_refresh(self.margin, build.depth);
+        (build.of_face(face), refresh.of_face(face))
+    }
+
     /// Cell size of the broad phase's node grid at the last build (m).
     pub fn cell_size(&self) -> f64 {
         self.broad.cell_size
@@ -1173,8 +1185,10 @@ impl ContactModel {
     /// the order the narrow phase visits them. A pair is a candidate when, at the last
     /// build, the triangle belongs to another body, the node lies within
     /// [`ContactModel::candidate_enlargement`] of the triangle, and the node is behind the
-    /// triangle's plane, or within [`ContactModel::candidate_front_reach`] of the
-    /// triangle, or the triangle belongs to a sheet ([`ContactModel::set_sheet_bodies`]);
+    /// triangle's plane within the build's [`ContactModel::candidate_window_reaches`] of
+    /// its window (the depth limit deep), or within
+    /// [`ContactModel::candidate_front_reach`] of the triangle, or the triangle belongs to
+    /// a sheet ([`ContactModel::set_sheet_bodies`]);
     /// a pair with a node or a face on a body refreshed since
     /// ([`ContactModel::refresh_count`]) was found the same way at its last refresh, with
     /// [`ContactModel::candidate_refresh_reaches`].
@@ -1580,9 +1594,9 @@ impl ContactModel {
                 },
             });
         }
-        // Tunnelling bound for pairs outside the candidate lists: they are at least the
-        // depth limit apart ([`StepReach`]), and no two nodes approach faster than twice
-        // the largest speed.
+        // Tunnelling bound for pairs outside the candidate lists: none of them can have the
+        // node in the face's window at an evaluation ([`StepReach`]), and no two nodes
+        // approach faster than twice the largest speed.
         let v_max = scan.max_speed2.sqrt();
         if 2.0 * v_max * dt > self.depth_limit {
             let k = scan.fastest;

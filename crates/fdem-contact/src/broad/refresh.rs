@@ -26,14 +26,16 @@
 //! the reaches; the argument is the same in the frame the mean motion carries along.
 //!
 //! The lists stay sorted by (owner body, triangle) per node, and the narrow phase only
-//! acts on faces within the depth limit of a node (every other candidate is skipped by an
-//! exact test), so a list with more candidates than a full build would give yields the
-//! same contacts and forces, bit for bit.
+//! acts on faces whose window holds a node (every other candidate is skipped by an exact
+//! test), so a list with more candidates than a full build would give yields the same
+//! contacts and forces, bit for bit. A refresh's window reach takes the same extra motion
+//! (`super::WindowReach::of_refresh`).
 
 use rayon::prelude::*;
 
 use super::{
-    BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, in_box, is_candidate,
+    BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach, in_box,
+    is_candidate,
 };
 use crate::ContactSurface;
 use crate::mean_motion::{Expected, drift2};
@@ -232,11 +234,13 @@ fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
 }
 
 /// The reaches of a refresh: the last full build's enlargement and front reach, each grown
-/// by what the extra half skin of relative motion adds (see the module documentation).
+/// by what the extra half skin of relative motion adds (see the module documentation),
+/// and the window reach's allowances for that motion.
 #[derive(Clone, Copy, Debug)]
 struct RefreshReach {
     enlargement: f64,
     front: f64,
+    window: WindowReach,
 }
 
 impl RefreshReach {
@@ -244,7 +248,18 @@ impl RefreshReach {
         RefreshReach {
             enlargement: broad.enlargement + 0.5 * skin,
             front: broad.front + FRONT_SKINS * 0.5 * skin,
+            window: WindowReach::of_refresh(skin, broad.window.depth),
         }
+    }
+
+    /// The squared enlargement and front reach, as the candidate test takes them.
+    fn squared(&self) -> (f64, f64) {
+        (self.enlargement * self.enlargement, self.front * self.front)
+    }
+
+    /// The window's depth and reach for `face`, as the candidate test takes them.
+    fn window_of(&self, face: [[f64; 3]; 3]) -> (f64, f64) {
+        (self.window.depth, self.window.of_face(face))
     }
 }
 
@@ -401,7 +416,7 @@ fn faces_of_dirty_nodes(
         return Vec::new();
     }
     let e = reach.enlargement;
-    let (reach2, front2) = (e * e, reach.front * reach.front);
+    let reaches = reach.squared();
     let n_chunks = surface.triangles.len().div_ceil(TRIANGLE_CHUNK);
     (0..n_chunks)
         .into_par_iter()
@@ -418,11 +433,12 @@ fn faces_of_dirty_nodes(
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
                 let sided = two_sided(owner);
+                let window = reach.window_of(face);
                 grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
                     let x = positions[surface.surface_nodes[k as usize]];
                     if surface.node_body[k as usize] != owner
                         && in_box(&bx, x)
-                        && is_candidate(x, face, reach2, front2, sided)
+                        && is_candidate(x, face, reaches, window, sided)
                     {
                         pairs.push((k, candidate(ids, t, owner)));
                     }
@@ -449,7 +465,7 @@ fn nodes_of_dirty_faces(
         return Vec::new();
     }
     let e = reach.enlargement;
-    let (reach2, front2) = (e * e, reach.front * reach.front);
+    let reaches = reach.squared();
     let n = surface.surface_nodes.len();
     (0..n.div_ceil(CHUNK))
         .into_par_iter()
@@ -468,7 +484,7 @@ fn nodes_of_dirty_faces(
                     let face = ids.map(|i| positions[i]);
                     if owner != body
                         && in_box(&grown_box(face, e), x)
-                        && is_candidate(x, face, reach2, front2, two_sided(owner))
+                        && is_candidate(x, face, reaches, reach.window_of(face), two_sided(owner))
                     {
                         pairs.push((k as u32, candidate(ids, t, owner)));
                     }

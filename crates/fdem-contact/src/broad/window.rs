@@ -1,0 +1,233 @@
+//! The contact window of a face, and how near to it a node behind the face's plane must be
+//! for the pair to be listed.
+//!
+//! The narrow phase accepts a node behind a face only when the foot of its perpendicular
+//! falls inside the face (barycentric coordinates `>= -tau`, [`BARYCENTRIC_TOLERANCE`]) and
+//! it lies at most the depth limit `D` behind the plane: the node is then in the face's
+//! *window*, the prism over the face (in its tolerance band) from `D` behind the plane to
+//! its front. (The closest-face rule looks at faces that cover a node from the front by
+//! less than a hit's depth, at most `D / 2`; the window therefore reaches `D` in front as
+//! well, which costs nothing below since a node behind the plane is nearest to the
+//! window's back part.) The distance to the face alone lists every node within
+//! `skin + D` of the face in any direction, most of them beside the window, where no
+//! motion within the lists' allowances can bring them in.
+//!
+//! **The bound.** Let the lists hold while the node moves at most `a_x` and each corner of
+//! the face at most `a_f` from where they were when the pair was found. Suppose the node is
+//! in the window later: `x' = p' + z' n'` with `p' = sum w_i c'_i` (weights in the band),
+//! `|z'| <= D`. The point `q = sum w_i c_i + z' n` lies in the window as found, and
+//!
+//! `|x - q| <= |x - x'| + |p' - p| + |z'| |n' - n| <= a_x + a_f (1 + 4 tau) + D |n' - n|`.
+//!
+//! With `u`, `v` the face's two shorter edges from their common corner and `N = u x v`,
+//! the corners' motions change each edge by at most `2 a_f`, so `|N' - N| <= delta =
+//! 2 a_f (|u| + |v|) + 4 a_f^2`; the map `y -> y / |y|` is `1/r`-Lipschitz outside the ball
+//! of radius `r`, so `|n' - n| <= delta / (|N| - delta)` while `delta < |N|` (and at most
+//! 2 always). A node behind the plane at depth `z` whose foot lies `l` from the face (in
+//! the plane) is at distance `sqrt(l^2 + max(z - D, 0)^2)` from the window, so a pair whose
+//! distance exceeds that reach can never hit (the band adds `4 tau` times the longest
+//! edge, the distance between the face and its band).
+//!
+//! **Under a mean motion** (`crate::mean_motion`) the drift is measured from where the mean
+//! map `M` (within `g` of the identity between any two evaluations of an epoch) takes the
+//! references. Pulled back by that map the same argument holds, with two additions: the
+//! map changes an edge `u` by at most `g |u|` (so each edge changes by `2 a_f + g |u|`), and
+//! the pull-back of `z' n'` differs from `z'` times the pulled-back face's normal by at
+//! most `3 g / (1 - g) D` (the map's own stretch of `z' n'` and the tilt of the normal,
+//! which turns with the inverse transpose). The lists' drift allowance renews the lists
+//! before `g` exceeds [`crate::mean_motion::DISTORTION_FRACTION`] of the skin over the
+//! reach length (at least `skin + D`), which bounds `g` here.
+//!
+//! Sheets keep the distance test alone (their edge contacts need the faces beside a node),
+//! and so do nodes in front of the plane (the front reach, `FRONT_SKINS`).
+
+use crate::mean_motion::DISTORTION_FRACTION;
+use crate::narrow::BARYCENTRIC_TOLERANCE;
+use crate::vec3::{cross, norm, sub};
+
+/// The motions a set of lists allows between the time its pairs are found and their
+/// renewal, and the depth of the window: what [`WindowReach::of_face`] needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct WindowReach {
+    /// How far a node may move (m).
+    pub(crate) node: f64,
+    /// How far each corner of a face may move (m).
+    pub(crate) corner: f64,
+    /// The depth limit `D` (m).
+    pub(crate) depth: f64,
+    /// The largest distortion `g` of the mean map within an epoch.
+    pub(crate) distortion: f64,
+}
+
+impl WindowReach {
+    /// The allowances of the lists of a full build with Verlet skin `skin`: every node
+    /// and corner moves at most half a skin.
+    pub(crate) fn of_build(skin: f64, depth: f64) -> WindowReach {
+        WindowReach {
+            node: 0.5 * skin,
+            corner: 0.5 * skin,
+            depth,
+            distortion: largest_distortion(skin, depth),
+        }
+    }
+
+    /// The allowances of a refresh's pairs: one end moves at most half a skin from its new
+    /// reference, the other up to a whole skin from where it is (it may have drifted half
+    /// a skin already and may drift as far again the other way); either may be the face.
+    pub(crate) fn of_refresh(skin: f64, depth: f64) -> WindowReach {
+        WindowReach {
+            node: skin,
+            corner: skin,
+            depth,
+            distortion: largest_distortion(skin, depth),
+        }
+    }
+
+    /// How far from the window of `face` (m) a node behind its plane may be and still be
+    /// in it before the lists are renewed (module documentation).
+    pub(crate) fn of_face(&self, face: [[f64; 3]; 3]) -> f64 {
+        let [a, b, c] = face;
+        let mut edges = [norm(sub(b, a)), norm(sub(c, b)), norm(sub(a, c))];
+        edges.sort_by(f64::total_cmp);
+        let [short, middle, longest] = edges;
+        let area2 = norm(cross(sub(b, a), sub(c, a)));
+        let g = self.distortion;
+        let (du, dv) = (
+            2.0 * self.corner + g * short,
+            2.0 * self.corner + g * middle,
+        );
+        let delta = du * middle + short * dv + du * dv;
+        let turn = if delta < area2 {
+            (delta / (area2 - delta)).min(2.0)
+        } else {
+            2.0
+        };
+        let band = 4.0 * BARYCENTRIC_TOLERANCE * longest;
+        let mean_tilt = 3.0 * g / (1.0 - g) * self.depth;
+        self.node
+            + self.corner * (1.0 + 4.0 * BARYCENTRIC_TOLERANCE)
+            + self.depth * turn
+            + mean_tilt
+            + band
+    }
+}
+
+/// The largest distortion of the mean map the lists allow before a full build (see
+/// `crate::mean_motion::DriftAllowance`): `g L <= DISTORTION_FRACTION * skin / 2` with the
+/// reach length `L >= skin + D`.
+fn largest_distortion(skin: f64, depth: f64) -> f64 {
+    DISTORTION_FRACTION * 0.5 * skin / (skin + depth)
+}
+
+/// Whether node `x`, behind the plane of `face` by `depth` and at squared distance `d2`
+/// from the face, lies within `reach` of the face's window of depth `window_depth`.
+#[inline(always)]
+pub(crate) fn near_window(d2: f64, depth: f64, window_depth: f64, reach: f64) -> bool {
+    // The foot's squared distance from the face in its plane: d2 = l^2 + z^2 for a node
+    // whose nearest point of the face is the nearest point to its foot.
+    let lateral2 = (d2 - depth * depth).max(0.0);
+    let beyond = (depth - window_depth).max(0.0);
+    lateral2 + beyond * beyond <= reach * reach * (1.0 + WINDOW_SLACK)
+}
+
+/// Relative slack of the window test, far above the round-off of `d2 - z^2`.
+const WINDOW_SLACK: f64 = 1e-6;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::narrow::{ProjectionKernel, distance2_to_triangle};
+    use crate::vec3::{add, dot, scale};
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    fn moved(p: [f64; 3], r: &mut Pcg64, by: f64) -> [f64; 3] {
+        // A random displacement of length at most `by`.
+        loop {
+            let d = [0; 3].map(|_| r.random_range(-1.0..1.0));
+            if dot(d, d) <= 1.0 {
+                return add(p, scale(d, by));
+            }
+        }
+    }
+
+    /// Random faces, nodes and motions within the allowances: every node that ends in
+    /// the moved face's window (the hand kernel accepts it) started within the window
+    /// reach of the face as found, or in front of its plane.
+    #[test]
+    fn every_node_that_reaches_the_window_was_within_its_reach() {
+        let mut r = Pcg64::seed_from_u64(7);
+        let (skin, depth) = (0.25e-3, 1.75e-3);
+        let mut hits = 0;
+        let mut tight = 0.0_f64;
+        for _ in 0..400_000 {
+            let face = [
+                [0.0, 0.0, 0.0],
+                [4e-3 + r.random_range(-1e-3..1e-3), 0.0, 0.0],
+                [r.random_range(0.0..4e-3), r.random_range(2e-3..4e-3), 0.0],
+            ];
+            let allow = if r.random_range(0.0..1.0) < 0.5 {
+                WindowReach::of_build(skin, depth)
+            } else {
+                WindowReach::of_refresh(skin, depth)
+            };
+            let x = [
+                r.random_range(-3e-3..7e-3),
+                r.random_range(-3e-3..7e-3),
+                r.random_range(-2.5e-3..0.5e-3),
+            ];
+            // The worst motions lie at the allowances' full length: push the corners
+            // apart or together at random, the node anywhere within its reach.
+            let moved_face = face.map(|c| moved(c, &mut r, allow.corner));
+            let x_moved = moved(x, &mut r, allow.node);
+            let Some(_) = ProjectionKernel::Hand.project(x_moved, moved_face, depth) else {
+                continue;
+            };
+            hits += 1;
+            let n = cross(sub(face[1], face[0]), sub(face[2], face[0]));
+            let s = dot(n, sub(x, face[0])) / norm(n);
+            if s >= 0.0 {
+                continue;
+            }
+            let d2 = distance2_to_triangle(x, face);
+            let reach = allow.of_face(face);
+            assert!(near_window(d2, -s, depth, reach), "{x:?} {face:?}");
+            let lateral = (d2 - s * s).max(0.0).sqrt();
+            tight = tight.max(lateral / reach);
+        }
+        assert!(hits > 10_000, "{hits}");
+        // The bound is not vacuous: some nodes came from well beside the face.
+        assert!(tight > 0.3, "{tight}");
+    }
+
+    #[test]
+    fn the_reach_is_far_below_the_distance_test_on_a_particle_face() {
+        // An equilateral face of 4.1 mm, the E1 particles' size, at the test's skin and a
+        // grown depth limit: the window reach is a fraction of skin + depth.
+        let l = 4.1e-3;
+        let face = [[0.0, 0.0, 0.0], [l, 0.0, 0.0], [0.5 * l, 0.866 * l, 0.0]];
+        let (skin, depth) = (0.256e-3, 1.73e-3);
+        let build = WindowReach::of_build(skin, depth).of_face(face);
+        let refresh = WindowReach::of_refresh(skin, depth).of_face(face);
+        assert!(build < 0.5 * (skin + depth), "{build}");
+        assert!(refresh > build && refresh < skin + depth, "{refresh}");
+        // A degenerate face keeps the widest reach (the normal may turn by anything).
+        let flat = [[0.0; 3], [l, 0.0, 0.0], [2.0 * l, 0.0, 0.0]];
+        let wide = WindowReach::of_build(skin, depth).of_face(flat);
+        assert!(wide >= 2.0 * depth, "{wide}");
+    }
+
+    #[test]
+    fn a_node_beside_the_face_is_out_of_the_window_and_one_below_it_is_in() {
+        let face = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        // Behind by 0.5 (outward normal +z), foot 0.3 beside the edge x = 0.
+        let x = [-0.3, 0.5, -0.5];
+        let d2 = distance2_to_triangle(x, face);
+        assert!(near_window(d2, 0.5, 1.0, 0.31));
+        assert!(!near_window(d2, 0.5, 1.0, 0.29));
+        // Deeper than the window by 0.4, foot inside.
+        let y = [0.2, 0.2, -1.4];
+        let d2 = distance2_to_triangle(y, face);
+        assert!(near_window(d2, 1.4, 1.0, 0.41) && !near_window(d2, 1.4, 1.0, 0.39));
+    }
+}
