@@ -7,7 +7,8 @@
 //! triangle itself (the point-triangle distance; the box's corners hold many pairs farther
 //! than that) is a candidate pair if it lies in front of the face within the front reach,
 //! or behind it near enough to its window, the prism where the narrow phase accepts a
-//! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The cell size is half the mean enlarged box (at least an
+//! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The
+//! cell size is half the mean enlarged box (at least an
 //! eighth of the largest), so a box overlaps a few cells of a few nodes each. Cells are
 //! numbered densely (`i + nx (j + ny k)`) when the nodes' region holds at most
 //! [`DENSE_CELLS_PER_NODE`] cells per node, and otherwise through their packed integer
@@ -300,9 +301,9 @@ const PLANE_PREFILTER_SLACK: f64 = 1e-6;
 
 /// The candidate test of node `x` against a face of another body: within `reach2`
 /// (squared) of the face, and either behind its plane (strictly; outward normal by the
-/// right-hand rule of its corners) and within `window.1` of its window of depth
-/// `window.0` ([`window`]), or `two_sided` (the distance alone), or within `front2`
-/// (squared) of it.
+/// right-hand rule of its corners) and within `window.1()` of its window of depth
+/// `window.0` ([`window`]; the reach is asked for only here, at most once per pair), or
+/// `two_sided` (the distance alone), or within `front2` (squared) of it.
 ///
 /// The plane distance is a lower bound of the distance to the face, so a pair whose plane
 /// distance exceeds its reach (beyond [`PLANE_PREFILTER_SLACK`]) is skipped before the
@@ -313,7 +314,7 @@ fn is_candidate(
     x: [f64; 3],
     face: [[f64; 3]; 3],
     (reach2, front2): (f64, f64),
-    window: (f64, f64),
+    window: (f64, &mut impl FnMut() -> f64),
     two_sided: bool,
 ) -> bool {
     use crate::vec3::{cross, dot, norm2, sub};
@@ -341,7 +342,7 @@ fn is_candidate(
         return d2 <= front2;
     }
     let (depth_limit, window_reach) = window;
-    window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach)
+    window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach())
 }
 
 #[inline(always)]
@@ -519,7 +520,7 @@ impl BroadPhase {
     /// front of the face's plane must first cross the face or the sides of the prism
     /// behind it; see FRONT_SKINS. A node behind the plane must be able to reach the
     /// face's window ([`window`]); the reach depends on the face's shape, so it is
-    /// computed once per triangle.
+    /// computed once per triangle, when a node behind the face first needs it.
     fn scan_triangles(
         &mut self,
         frame: Frame,
@@ -552,7 +553,9 @@ impl BroadPhase {
                 for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
                     let face = ids.map(|i| positions[i]);
                     let sided = two_sided(owner);
-                    let window = (window.depth, window.of_face(face));
+                    // The face's window reach, computed for its first node behind it.
+                    let mut reach = None;
+                    let mut window_reach = || *reach.get_or_insert_with(|| window.of_face(face));
                     frame.for_each_cell_within(layout, bx, |c| {
                         let Some(cell) = lookup(layout, table, c) else {
                             return;
@@ -565,7 +568,13 @@ impl BroadPhase {
                         {
                             if body != owner
                                 && in_box(bx, x)
-                                && is_candidate(x, face, reaches, window, sided)
+                                && is_candidate(
+                                    x,
+                                    face,
+                                    reaches,
+                                    (window.depth, &mut window_reach),
+                                    sided,
+                                )
                             {
                                 pairs.push((
                                     k,

@@ -257,9 +257,9 @@ impl RefreshReach {
         (self.enlargement * self.enlargement, self.front * self.front)
     }
 
-    /// The window's depth and reach for `face`, as the candidate test takes them.
-    fn window_of(&self, face: [[f64; 3]; 3]) -> (f64, f64) {
-        (self.window.depth, self.window.of_face(face))
+    /// The window's reach for `face`.
+    fn window_of(&self, face: [[f64; 3]; 3]) -> f64 {
+        self.window.of_face(face)
     }
 }
 
@@ -433,12 +433,20 @@ fn faces_of_dirty_nodes(
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
                 let sided = two_sided(owner);
-                let window = reach.window_of(face);
+                // The face's window reach, computed for its first node behind it.
+                let mut window = None;
+                let mut window_reach = || *window.get_or_insert_with(|| reach.window_of(face));
                 grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
                     let x = positions[surface.surface_nodes[k as usize]];
                     if surface.node_body[k as usize] != owner
                         && in_box(&bx, x)
-                        && is_candidate(x, face, reaches, window, sided)
+                        && is_candidate(
+                            x,
+                            face,
+                            reaches,
+                            (reach.window.depth, &mut window_reach),
+                            sided,
+                        )
                     {
                         pairs.push((k, candidate(ids, t, owner)));
                     }
@@ -484,7 +492,13 @@ fn nodes_of_dirty_faces(
                     let face = ids.map(|i| positions[i]);
                     if owner != body
                         && in_box(&grown_box(face, e), x)
-                        && is_candidate(x, face, reaches, reach.window_of(face), two_sided(owner))
+                        && is_candidate(
+                            x,
+                            face,
+                            reaches,
+                            (reach.window.depth, &mut || reach.window_of(face)),
+                            two_sided(owner),
+                        )
                     {
                         pairs.push((k as u32, candidate(ids, t, owner)));
                     }
