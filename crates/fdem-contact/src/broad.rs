@@ -26,9 +26,11 @@
 //! has moved farther, the model either refreshes the pairs of the bodies that drifted
 //! ([`refresh`]: a few rattling particles) or rebuilds everything.
 
+mod bodies;
 mod refresh;
 mod window;
 
+use bodies::BodyIndex;
 pub(crate) use window::WindowReach;
 
 use rayon::prelude::*;
@@ -169,6 +171,8 @@ pub(crate) struct BroadPhase {
     pub(crate) front: f64,
     /// The allowances behind the window reach of the last build ([`window`]).
     pub(crate) window: WindowReach,
+    /// Each body's surface nodes and triangles ([`bodies`]).
+    bodies: BodyIndex,
     /// Cell size at the last build (m).
     pub(crate) cell_size: f64,
     /// Surface node positions at the last build.
@@ -351,6 +355,19 @@ fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
 }
 
 impl BroadPhase {
+    /// An empty broad phase for `surface` (no build yet).
+    pub(crate) fn for_surface(surface: &ContactSurface) -> BroadPhase {
+        BroadPhase {
+            bodies: BodyIndex::of(surface),
+            ..BroadPhase::default()
+        }
+    }
+
+    /// The number of bodies of the surface.
+    pub(crate) fn n_bodies(&self) -> usize {
+        self.bodies.bodies()
+    }
+
     /// Rebuilds grid and candidates from the current positions; positions must be finite
     /// (the model checks them first).
     ///

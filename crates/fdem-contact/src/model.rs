@@ -649,7 +649,7 @@ impl ContactModel {
             bound_masses: node_masses.clone(),
             masses: node_masses,
             stable,
-            broad: BroadPhase::default(),
+            broad: BroadPhase::for_surface(&surface),
             rebuild_requested: true,
             refresh_policy: RefreshPolicy::default(),
             contacts: Vec::new(),
@@ -1709,7 +1709,7 @@ impl ContactModel {
     /// Per body id, whether a framed body's pose shows all its nodes clearly within
     /// `threshold` (m) of their expected references (a refresh need not read them).
     fn clearly_clean(&self, expected: Option<&Expected>, threshold: f64) -> Vec<bool> {
-        let mut clean = vec![false; self.surface.n_bodies()];
+        let mut clean = vec![false; self.broad.n_bodies()];
         let Some(frames) = active_frames(&self.rigid_frames, self.frames_active) else {
             return clean;
         };

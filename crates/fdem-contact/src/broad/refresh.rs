@@ -34,8 +34,8 @@
 use rayon::prelude::*;
 
 use super::{
-    BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach, in_box,
-    is_candidate,
+    BodyIndex, BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach,
+    in_box, is_candidate,
 };
 use crate::ContactSurface;
 use crate::mean_motion::{Expected, drift2};
@@ -183,20 +183,30 @@ impl LocalGrid {
     }
 }
 
-/// Per body, the box of its surface nodes at `positions`; it holds every face of the body,
-/// whose corners are surface nodes of the body (`ContactSurface::validate`). A body without
-/// surface nodes gets an empty box (lower corner above the upper).
-fn body_boxes(positions: &[[f64; 3]], surface: &ContactSurface, n_bodies: usize) -> Vec<[f64; 6]> {
+/// Per body, the box of its surface nodes at `positions` (in parallel over the bodies);
+/// it holds every face of the body, whose corners are surface nodes of the body
+/// (`ContactSurface::validate`). A body without surface nodes gets an empty box (lower
+/// corner above the upper).
+fn body_boxes(
+    positions: &[[f64; 3]],
+    surface: &ContactSurface,
+    bodies: &BodyIndex,
+) -> Vec<[f64; 6]> {
     let (inf, neg) = (f64::INFINITY, f64::NEG_INFINITY);
-    let mut boxes = vec![[inf, inf, inf, neg, neg, neg]; n_bodies];
-    for (&g, &body) in surface.surface_nodes.iter().zip(&surface.node_body) {
-        let (x, bx) = (positions[g], &mut boxes[body as usize]);
-        for d in 0..3 {
-            bx[d] = bx[d].min(x[d]);
-            bx[d + 3] = bx[d + 3].max(x[d]);
-        }
-    }
-    boxes
+    (0..bodies.bodies())
+        .into_par_iter()
+        .map(|body| {
+            let mut bx = [inf, inf, inf, neg, neg, neg];
+            for &k in bodies.nodes(body) {
+                let x = positions[surface.surface_nodes[k as usize]];
+                for d in 0..3 {
+                    bx[d] = bx[d].min(x[d]);
+                    bx[d + 3] = bx[d + 3].max(x[d]);
+                }
+            }
+            bx
+        })
+        .collect()
 }
 
 /// Calls `f` with the index of every cell from `lo` to `hi` (inclusive; empty when a
@@ -275,7 +285,7 @@ impl BroadPhase {
         (half, clean): (f64, &[bool]),
         expected: Option<&Expected>,
     ) -> (Vec<bool>, usize) {
-        let n_bodies = surface.n_bodies();
+        let n_bodies = self.bodies.bodies();
         // The drifted nodes' bodies, found in parallel over fixed chunks of nodes.
         let drifted: Vec<Vec<u32>> = (0..surface.surface_nodes.len().div_ceil(CHUNK))
             .into_par_iter()
@@ -302,11 +312,10 @@ impl BroadPhase {
         for &body in drifted.iter().flatten() {
             dirty[body as usize] = true;
         }
-        let nodes = surface
-            .node_body
-            .iter()
-            .filter(|&&b| dirty[b as usize])
-            .count();
+        let nodes = (0..n_bodies)
+            .filter(|&b| dirty[b])
+            .map(|b| self.bodies.nodes(b).len())
+            .sum();
         (dirty, nodes)
     }
 
@@ -339,9 +348,7 @@ impl BroadPhase {
     ) -> bool {
         let reach = RefreshReach::of(self, skin);
         let e = reach.enlargement;
-        let dirty_nodes: Vec<u32> = (0..surface.surface_nodes.len() as u32)
-            .filter(|&k| dirty[surface.node_body[k as usize] as usize])
-            .collect();
+        let dirty_nodes = self.bodies.nodes_of(dirty);
         // Each dirty node binned by the box it reaches, so that a triangle looks only at
         // the cells of its own box; each dirty face by its enlarged box.
         let node_boxes: Vec<(u32, [f64; 6])> = dirty_nodes
@@ -354,11 +361,10 @@ impl BroadPhase {
                 )
             })
             .collect();
-        let face_boxes: Vec<(u32, [f64; 6])> = (0..surface.triangles.len())
-            .filter(|&t| dirty[surface.triangle_body[t] as usize])
+        let face_boxes: Vec<(u32, [f64; 6])> = (self.bodies.triangles_of(dirty).into_iter())
             .map(|t| {
-                let face = surface.triangles[t].map(|i| positions[i]);
-                (t as u32, grown_box(face, e))
+                let face = surface.triangles[t as usize].map(|i| positions[i]);
+                (t, grown_box(face, e))
             })
             .collect();
         let node_grid = LocalGrid::build(self.cell_size, &node_boxes);
@@ -369,13 +375,12 @@ impl BroadPhase {
         // Only the bodies whose box overlaps an occupied cell of a grid can pair with its
         // items: the scans below skip every other body's faces or nodes, which the grid
         // would give nothing (the same pairs, in the same order).
-        let boxes = body_boxes(positions, surface, dirty.len());
+        let boxes = body_boxes(positions, surface, &self.bodies);
         let near_nodes = node_grid.near_bodies(&boxes);
         let mut found = faces_of_dirty_nodes(
             positions,
             surface,
-            &node_grid,
-            &near_nodes,
+            (&node_grid, &self.bodies.triangles_of(&near_nodes)),
             reach,
             &two_sided,
         );
@@ -384,8 +389,7 @@ impl BroadPhase {
             positions,
             surface,
             dirty,
-            &face_grid,
-            &near_faces,
+            (&face_grid, &self.bodies.nodes_of(&near_faces)),
             reach,
             &two_sided,
         ));
@@ -401,14 +405,13 @@ impl BroadPhase {
     }
 }
 
-/// The pairs of the dirty nodes (binned in `grid`) with every face of another body, one
-/// list per fixed chunk of triangles (a pair may be listed twice); the faces of a body not
-/// `near` the grid's nodes are skipped.
+/// The pairs of the dirty nodes (binned in `grid`) with the faces `near` them (the
+/// faces of the bodies whose box reaches the grid's nodes, increasing), one list per fixed
+/// chunk of those faces (a pair may be listed twice).
 fn faces_of_dirty_nodes(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
-    grid: &LocalGrid,
-    near: &[bool],
+    (grid, near): (&LocalGrid, &[u32]),
     reach: RefreshReach,
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
@@ -417,18 +420,12 @@ fn faces_of_dirty_nodes(
     }
     let e = reach.enlargement;
     let reaches = reach.squared();
-    let n_chunks = surface.triangles.len().div_ceil(TRIANGLE_CHUNK);
-    (0..n_chunks)
-        .into_par_iter()
-        .map(|chunk| {
+    near.par_chunks(TRIANGLE_CHUNK)
+        .map(|faces| {
             let mut pairs = Vec::new();
-            let first = chunk * TRIANGLE_CHUNK;
-            let last = (first + TRIANGLE_CHUNK).min(surface.triangles.len());
-            for t in first..last {
+            for &t in faces {
+                let t = t as usize;
                 let owner = surface.triangle_body[t];
-                if !near[owner as usize] {
-                    continue;
-                }
                 let ids = surface.triangles[t];
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
@@ -457,15 +454,14 @@ fn faces_of_dirty_nodes(
         .collect()
 }
 
-/// The pairs of every node of a clean body with the faces of the dirty bodies (binned in
-/// `grid`), one list per fixed chunk of surface nodes; the nodes of a body not `near` the
-/// grid's faces are skipped.
+/// The pairs of the nodes `near` the dirty faces (the nodes of the bodies whose box
+/// reaches the grid's faces, increasing; those of dirty bodies are skipped) with the dirty
+/// faces (binned in `grid`), one list per fixed chunk of those nodes.
 fn nodes_of_dirty_faces(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
     dirty: &[bool],
-    grid: &LocalGrid,
-    near: &[bool],
+    (grid, near): (&LocalGrid, &[u32]),
     reach: RefreshReach,
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
@@ -474,14 +470,13 @@ fn nodes_of_dirty_faces(
     }
     let e = reach.enlargement;
     let reaches = reach.squared();
-    let n = surface.surface_nodes.len();
-    (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|chunk| {
+    near.par_chunks(CHUNK)
+        .map(|nodes| {
             let mut pairs = Vec::new();
-            for k in chunk * CHUNK..((chunk + 1) * CHUNK).min(n) {
+            for &k in nodes {
+                let k = k as usize;
                 let body = surface.node_body[k];
-                if dirty[body as usize] || !near[body as usize] {
+                if dirty[body as usize] {
                     continue;
                 }
                 let x = positions[surface.surface_nodes[k]];
