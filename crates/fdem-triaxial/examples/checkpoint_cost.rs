@@ -12,8 +12,8 @@
 //! rebuilds, the mean wall milliseconds of steps with and without a rebuild, a rebuild's
 //! extra cost in plain steps, the candidate pairs and contacts at the end, the broad phase's
 //! cell size and box enlargement (m), the FNV-1a hash of the node positions' bits, the
-//! refreshes and the mean milliseconds of a step with one, and the mean milliseconds of
-//! all steps. The platens keep the motion they had at the
+//! refreshes and the mean milliseconds of a step with one, the mean milliseconds of all
+//! steps, and the mean number of bodies a refresh renewed. The platens keep the motion they had at the
 //! checkpoint, as in shear. Large blocks are on huge pages, as in the `fdem` binary.
 use fdem_triaxial::{PreparedSpecimen, TestModel};
 use std::path::Path;
@@ -47,6 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let builds = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().rebuild_count());
     let refreshes = |m: &TestModel| m.sim.contact().map_or(0, |c| c.model().refresh_count());
     let (mut plain, mut rebuilt, mut refreshed) = ((0u64, 0.0f64), (0u64, 0.0f64), (0u64, 0.0f64));
+    let mut refreshed_bodies = 0usize;
     // On a worker of the pool, as the command line runs its time loops (from outside the
     // pool every parallel region of a step would be a hand-over and a wake-up).
     rayon::scope(|_| {
@@ -58,6 +59,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let slot = if builds(&model) > before.0 {
                 &mut rebuilt
             } else if refreshes(&model) > before.1 {
+                refreshed_bodies += model
+                    .sim
+                    .contact()
+                    .map_or(0, |c| c.last_report().refreshed_bodies);
                 &mut refreshed
             } else {
                 &mut plain
@@ -87,15 +92,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!(
-        "steps,rebuilds,ms_plain,ms_rebuild,rebuild_cost_steps,pairs,contacts,cell_size,enlargement,hash,refreshes,ms_refresh,ms_step"
+        "steps,rebuilds,ms_plain,ms_rebuild,rebuild_cost_steps,pairs,contacts,cell_size,enlargement,hash,refreshes,ms_refresh,ms_step,bodies_per_refresh"
     );
     let all_ms = (plain.1 + rebuilt.1 + refreshed.1) / steps.max(1) as f64;
     println!(
-        "{steps},{},{plain_ms:.3},{rebuilt_ms:.3},{:.2},{pairs},{contacts},{cell:e},{enlargement:e},{hash:016x},{},{:.3},{all_ms:.3}",
+        "{steps},{},{plain_ms:.3},{rebuilt_ms:.3},{:.2},{pairs},{contacts},{cell:e},{enlargement:e},{hash:016x},{},{:.3},{all_ms:.3},{:.1}",
         rebuilt.0,
         (rebuilt_ms - plain_ms) / plain_ms,
         refreshed.0,
         mean(refreshed),
+        refreshed_bodies as f64 / refreshed.0.max(1) as f64,
     );
     Ok(())
 }
