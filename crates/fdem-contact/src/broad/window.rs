@@ -200,6 +200,41 @@ mod tests {
         assert!(tight > 0.3, "{tight}");
     }
 
+    /// The worst motion for a deep window: the corners of one edge move out and up, the
+    /// far corner out and down (each by the whole allowance), turning the face so that its
+    /// window, the depth limit deep, sweeps beside that edge; the node moves in. A node
+    /// found farther beside the edge than the motions alone (node, corners and the mean
+    /// map's tilt) reaches the window, so the reach needs the turn of the normal.
+    #[test]
+    fn the_turn_of_the_face_brings_a_deep_node_beside_it_into_the_window() {
+        let (l, depth, skin) = (4e-3, 4e-3, 0.25e-3);
+        let allow = WindowReach::of_build(skin, depth);
+        let a = allow.corner;
+        let face = [[0.0, 0.0, 0.0], [l, 0.0, 0.0], [0.0, l, 0.0]];
+        let (cos, sin) = (1.0 / 5.0_f64.sqrt(), 2.0 / 5.0_f64.sqrt());
+        let up = [-a * cos, 0.0, a * sin];
+        let down = [-a * cos, 0.0, -a * sin];
+        let moved = [add(face[0], up), add(face[1], down), add(face[2], up)];
+        let beside = |x: f64| [-x, 0.25 * l, -0.97 * depth];
+        // The farthest node beside the edge that the moved window accepts.
+        let farthest = (0..2000)
+            .map(|i| i as f64 * 0.5e-6)
+            .filter(|&x| {
+                let x_moved = add(beside(x), [allow.node, 0.0, 0.0]);
+                ProjectionKernel::Hand
+                    .project(x_moved, moved, depth)
+                    .is_some()
+            })
+            .fold(0.0_f64, f64::max);
+        let without_turn = allow.node
+            + allow.corner * (1.0 + 4.0 * BARYCENTRIC_TOLERANCE)
+            + 3.0 * allow.distortion / (1.0 - allow.distortion) * depth;
+        assert!(farthest > 1.2 * without_turn, "{farthest} {without_turn}");
+        let x = beside(farthest);
+        let d2 = distance2_to_triangle(x, face);
+        assert!(near_window(d2, -x[2], depth, allow.of_face(face)));
+    }
+
     #[test]
     fn the_reach_is_far_below_the_distance_test_on_a_particle_face() {
         // An equilateral face of 4.1 mm, the E1 particles' size, at the test's skin and a
