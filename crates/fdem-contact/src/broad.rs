@@ -8,8 +8,8 @@
 //! than that) is a candidate pair if it lies in front of the face within the front reach,
 //! or behind it near enough to its window, the prism where the narrow phase accepts a
 //! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The
-//! cell size is half the mean enlarged box (at least an
-//! eighth of the largest), so a box overlaps a few cells of a few nodes each. Cells are
+//! cell size is half the mean enlarged box (at least an eighth of the largest), so a box
+//! overlaps a few cells of a few nodes each. Cells are
 //! numbered densely (`i + nx (j + ny k)`) when the nodes' region holds at most
 //! [`DENSE_CELLS_PER_NODE`] cells per node, and otherwise through their packed integer
 //! coordinates in a deterministic open-addressing table (fixed hash function, slots
@@ -570,9 +570,7 @@ impl BroadPhase {
                 for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
                     let face = ids.map(|i| positions[i]);
                     let sided = two_sided(owner);
-                    // The face's window reach, computed for its first node behind it.
-                    let mut reach = None;
-                    let mut window_reach = || *reach.get_or_insert_with(|| window.of_face(face));
+                    let mut window_reach = window.of_face_once(face);
                     frame.for_each_cell_within(layout, bx, |c| {
                         let Some(cell) = lookup(layout, table, c) else {
                             return;

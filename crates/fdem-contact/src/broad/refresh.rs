@@ -266,11 +266,6 @@ impl RefreshReach {
     fn squared(&self) -> (f64, f64) {
         (self.enlargement * self.enlargement, self.front * self.front)
     }
-
-    /// The window's reach for `face`.
-    fn window_of(&self, face: [[f64; 3]; 3]) -> f64 {
-        self.window.of_face(face)
-    }
 }
 
 impl BroadPhase {
@@ -430,9 +425,7 @@ fn faces_of_dirty_nodes(
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
                 let sided = two_sided(owner);
-                // The face's window reach, computed for its first node behind it.
-                let mut window = None;
-                let mut window_reach = || *window.get_or_insert_with(|| reach.window_of(face));
+                let mut window_reach = reach.window.of_face_once(face);
                 grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
                     let x = positions[surface.surface_nodes[k as usize]];
                     if surface.node_body[k as usize] != owner
@@ -491,7 +484,7 @@ fn nodes_of_dirty_faces(
                             x,
                             face,
                             reaches,
-                            (reach.window.depth, &mut || reach.window_of(face)),
+                            (reach.window.depth, &mut || reach.window.of_face(face)),
                             two_sided(owner),
                         )
                     {

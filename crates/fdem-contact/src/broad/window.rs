@@ -35,8 +35,8 @@
 //! the pull-back of `z' n'` differs from `z'` times the pulled-back face's normal by at
 //! most `3 g / (1 - g) D` (the map's own stretch of `z' n'` and the tilt of the normal,
 //! which turns with the inverse transpose). The lists' drift allowance renews the lists
-//! before `g` exceeds [`crate::mean_motion::DISTORTION_FRACTION`] of the skin over the
-//! reach length (at least `skin + D`), which bounds `g` here.
+//! before `g L` exceeds [`crate::mean_motion::DISTORTION_FRACTION`] of half the skin,
+//! `L` the lists' reach length (at least `skin + D`), which bounds `g` here.
 //!
 //! Sheets keep the distance test alone (their edge contacts need the faces beside a node),
 //! and so do nodes in front of the plane (the front reach, `FRONT_SKINS`).
@@ -81,6 +81,13 @@ impl WindowReach {
             depth,
             distortion: largest_distortion(skin, depth),
         }
+    }
+
+    /// [`WindowReach::of_face`], computed at the first call and kept: a face's scan asks
+    /// for it only when a node lies behind the face.
+    pub(crate) fn of_face_once(self, face: [[f64; 3]; 3]) -> impl FnMut() -> f64 {
+        let mut reach = None;
+        move || *reach.get_or_insert_with(|| self.of_face(face))
     }
 
     /// How far from the window of `face` (m) a node behind its plane may be and still be
