@@ -51,12 +51,13 @@ pub struct RefreshPolicy {
 }
 
 impl Default for RefreshPolicy {
-    /// Refresh the bodies past a quarter of the margin while they are at most a tenth of
-    /// the surface nodes, and at most half between full builds (chosen on a checkpoint of
-    /// the study's B1 run and the quick test, docs/PERFORMANCE.md).
+    /// Refresh the bodies past three eighths of the margin while they are at most a tenth
+    /// of the surface nodes, and at most half between full builds (the fractions chosen on
+    /// a checkpoint of the study's B1 run and the quick test, the reach on E1's checkpoint
+    /// and the quick tests; docs/PERFORMANCE.md).
     fn default() -> Self {
         RefreshPolicy {
-            near: 0.5,
+            near: 0.75,
             max_fraction: 0.1,
             max_refreshed_fraction: 0.5,
         }
