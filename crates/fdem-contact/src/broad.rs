@@ -18,6 +18,12 @@
 //! triangle): the lists are the same for every thread count, and a build costs
 //! O(triangles + surface nodes + pairs).
 //!
+//! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
+//! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
+//! their bounding spheres and their template's faces binned by direction, and the other
+//! faces find their nodes through the same spheres. Every pair still takes the scan's own
+//! test, so the lists are the same.
+//!
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
 //! depth limit` apart and still are more than the depth limit apart (each moved less than
@@ -27,16 +33,19 @@
 //! ([`refresh`]: a few rattling particles) or rebuilds everything.
 
 mod bodies;
+mod framed;
 mod refresh;
 mod window;
 
 use bodies::BodyIndex;
+pub(crate) use framed::FaceCones;
 pub(crate) use window::WindowReach;
 
 use rayon::prelude::*;
 
 use crate::ContactSurface;
 use crate::narrow::{BARYCENTRIC_TOLERANCE, distance2_to_triangle};
+use crate::rigid_frames::RigidFrames;
 
 /// Surface nodes per parallel work item (fixed, so the chunking never depends on the
 /// thread count).
@@ -197,7 +206,10 @@ pub(crate) struct BroadPhase {
     cell_start: Vec<usize>,
     /// The surface nodes by cell, in increasing order within a cell.
     cell_nodes: Vec<u32>,
-    /// Per surface node, its cell number.
+    /// The surface nodes binned in the grid (those of bodies without a frame when the
+    /// build has frames), increasing.
+    binned: Vec<u32>,
+    /// Per binned node, its cell number.
     node_cells: Vec<u32>,
     /// Reference positions of the nodes of `cell_nodes`, in its order.
     cell_x: Vec<[f64; 3]>,
@@ -208,6 +220,8 @@ pub(crate) struct BroadPhase {
     found: Vec<Vec<(u32, Candidate)>>,
     /// Per surface node, the next free slot of its list while the pairs are placed.
     cursor: Vec<usize>,
+    /// The direction bins of the rigid bodies' templates ([`framed`]).
+    bins: framed::BinCache,
 }
 
 /// How cells are numbered: a dense box of cells when the occupied region is compact
@@ -349,6 +363,19 @@ fn is_candidate(
     window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach())
 }
 
+/// The box of a triangle, grown by `e` on every side (the build's enlarged boxes, bit for
+/// bit, when `e` is the enlargement).
+#[inline(always)]
+fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
+    let [a, b, c] = face;
+    let mut bx = [0.0; 6];
+    for d in 0..3 {
+        bx[d] = a[d].min(b[d]).min(c[d]) - e;
+        bx[d + 3] = a[d].max(b[d]).max(c[d]) + e;
+    }
+    bx
+}
+
 #[inline(always)]
 fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
     x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
@@ -376,12 +403,16 @@ impl BroadPhase {
     /// face's plane, or within [`FRONT_SKINS`] skins of the face (plus the band), or the
     /// face's body is `two_sided` (sheets, whose edges also make contacts and whose edge
     /// filter looks at faces in front).
+    ///
+    /// With `frames` (in use at these positions), the pairs with the framed bodies' faces
+    /// and nodes are found body by body ([`framed`]), the same pairs as the grid scan's:
+    /// the grid holds only the other bodies' nodes.
     pub(crate) fn build(
         &mut self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
-        skin: f64,
-        depth_limit: f64,
+        (skin, depth_limit): (f64, f64),
+        frames: Option<&RigidFrames>,
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
         let reach = skin + depth_limit;
@@ -392,8 +423,41 @@ impl BroadPhase {
         let e = self.enlarged_boxes(positions, surface, reach);
         // The reach in front of a face's plane: see FRONT_SKINS.
         self.front = FRONT_SKINS * skin + (e - reach);
-        let frame = self.bin_nodes(&surface.node_body);
-        self.scan_triangles(frame, positions, surface, two_sided);
+        let framed_body = |body: u32| frames.is_some_and(|f| f.has(body));
+        let spheres = frames.map(|f| {
+            let nodes = (self.reference.as_slice(), &self.bodies);
+            framed::SphereGrid::of(nodes, f, &mut self.bins, e)
+        });
+        let frame = self.bin_nodes(&surface.node_body, framed_body);
+        // The faces the grid scan visits: all, or those without a frame.
+        let pieces: Vec<std::ops::Range<usize>> = match frames {
+            Some(f) => f.unframed_faces().to_vec(),
+            None => {
+                let n = surface.triangles.len();
+                (0..n.div_ceil(TRIANGLE_CHUNK))
+                    .map(|c| c * TRIANGLE_CHUNK..((c + 1) * TRIANGLE_CHUNK).min(n))
+                    .collect()
+            }
+        };
+        self.scan_triangles(
+            frame,
+            (positions, surface),
+            (&pieces, spheres.as_ref()),
+            &two_sided,
+        );
+        if let (Some(frames), Some(spheres)) = (frames, &spheres) {
+            let input = framed::ScanInput {
+                reference: &self.reference,
+                positions,
+                surface,
+                bodies: &self.bodies,
+                enlargement: self.enlargement,
+                front: self.front,
+                window: self.window,
+            };
+            let pairs = framed::framed_pairs(&input, frames, (spheres, &self.bins), &two_sided);
+            self.found.extend(pairs);
+        }
         self.place_pairs(surface);
         self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
         self.built = true;
@@ -443,15 +507,20 @@ impl BroadPhase {
         e
     }
 
-    /// Bins the surface nodes (their reference positions) into the grid: numbers the
-    /// cells, dense when the nodes' region holds at most [`DENSE_CELLS_PER_NODE`] cells per
-    /// node, else through the hash table, and sorts the nodes by cell (a counting sort,
-    /// increasing node order within a cell). Returns the grid's frame.
-    fn bin_nodes(&mut self, node_body: &[u32]) -> Frame {
+    /// Bins the surface nodes (their reference positions) of the bodies not `skipped` into
+    /// the grid: numbers the cells, dense when the nodes' region holds at most
+    /// [`DENSE_CELLS_PER_NODE`] cells per node, else through the hash table, and sorts the
+    /// nodes by cell (a counting sort, increasing node order within a cell). Returns the
+    /// grid's frame.
+    fn bin_nodes(&mut self, node_body: &[u32], skipped: impl Fn(u32) -> bool) -> Frame {
+        self.binned.clear();
+        self.binned
+            .extend((0..self.reference.len() as u32).filter(|&k| !skipped(node_body[k as usize])));
         let inv = 1.0 / self.cell_size;
         let mut origin = [f64::INFINITY; 3];
         let mut top = [f64::NEG_INFINITY; 3];
-        for x in &self.reference {
+        for &k in &self.binned {
+            let x = self.reference[k as usize];
             for d in 0..3 {
                 origin[d] = origin[d].min(x[d]);
                 top[d] = top[d].max(x[d]);
@@ -463,7 +532,7 @@ impl BroadPhase {
         }
         let frame = Frame { origin, inv };
         let dims = frame.cell(top).map(|e| e.saturating_add(1).max(1));
-        let n = self.reference.len();
+        let n = self.binned.len();
         let budget = (DENSE_CELLS_PER_NODE * n).max(DENSE_MIN_CELLS);
         let cells = dims
             .iter()
@@ -472,21 +541,21 @@ impl BroadPhase {
             Some(c) if c <= budget => Layout::Dense { dims },
             _ => Layout::Hash,
         };
-        // Number every node's cell (a node always lies in the grid: its own cell).
+        // Number every binned node's cell (a node always lies in the grid: its own cell).
         self.node_cells.clear();
+        let (reference, binned) = (&self.reference, &self.binned);
+        let positions = binned.iter().map(|&k| reference[k as usize]);
         match self.layout {
             Layout::Dense { .. } => {
                 let (layout, table) = (self.layout, &self.table);
                 self.node_cells.extend(
-                    self.reference
-                        .iter()
-                        .map(|&x| lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)),
+                    positions.map(|x| lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)),
                 );
             }
             Layout::Hash => {
                 let table = &mut self.table;
                 table.reset(n);
-                self.node_cells.extend(self.reference.iter().map(|&x| {
+                self.node_cells.extend(positions.map(|x| {
                     let [i, j, k] = frame.cell(x);
                     table.insert(pack(i, j, k))
                 }));
@@ -510,9 +579,9 @@ impl BroadPhase {
         self.cursor.extend_from_slice(&start[..n_cells]);
         self.cell_nodes.clear();
         self.cell_nodes.resize(n, 0);
-        for (k, &c) in self.node_cells.iter().enumerate() {
+        for (&k, &c) in self.binned.iter().zip(&self.node_cells) {
             let slot = &mut self.cursor[c as usize];
-            self.cell_nodes[*slot] = k as u32;
+            self.cell_nodes[*slot] = k;
             *slot += 1;
         }
         // Positions and bodies in the same order, so the scan reads a cell's nodes
@@ -526,10 +595,11 @@ impl BroadPhase {
         frame
     }
 
-    /// The scan, parallel over fixed chunks of [`TRIANGLE_CHUNK`] triangles: every
-    /// triangle visits the cells its enlarged box overlaps and keeps the nodes of other
-    /// bodies there whose position lies in the box and that pass [`is_candidate`]; each
-    /// chunk lists its pairs in triangle order.
+    /// The scan, parallel over `pieces` (fixed runs of triangles): every triangle visits the
+    /// cells its enlarged box overlaps and keeps the nodes of other bodies there whose
+    /// position lies in the box and that pass [`is_candidate`], and with `spheres` the
+    /// nodes of the framed bodies that meet the box (which the grid does not hold); each
+    /// piece lists its pairs in triangle order.
     ///
     /// A node farther than the enlargement from the triangle itself cannot reach it
     /// before the next build (every point of the face moves at most half the skin, as
@@ -541,13 +611,12 @@ impl BroadPhase {
     fn scan_triangles(
         &mut self,
         frame: Frame,
-        positions: &[[f64; 3]],
-        surface: &ContactSurface,
-        two_sided: impl Fn(u32) -> bool + Sync,
+        (positions, surface): (&[[f64; 3]], &ContactSurface),
+        (pieces, spheres): (&[std::ops::Range<usize>], Option<&framed::SphereGrid>),
+        two_sided: &(impl Fn(u32) -> bool + Sync),
     ) {
-        let n_chunks = surface.triangles.len().div_ceil(TRIANGLE_CHUNK);
-        self.found.resize_with(n_chunks, Vec::new);
-        self.found.truncate(n_chunks);
+        self.found.resize_with(pieces.len(), Vec::new);
+        self.found.truncate(pieces.len());
         let e = self.enlargement;
         let reaches = (e * e, self.front * self.front);
         let window = self.window;
@@ -555,14 +624,14 @@ impl BroadPhase {
         let boxes = &self.boxes;
         let (cell_start, cell_nodes) = (&self.cell_start, &self.cell_nodes);
         let (cell_x, cell_body) = (&self.cell_x, &self.cell_body);
+        let (reference, bodies) = (&self.reference, &self.bodies);
         self.found
             .par_iter_mut()
             .enumerate()
             .for_each(|(chunk, pairs)| {
                 pairs.clear();
-                let first = chunk * TRIANGLE_CHUNK;
-                let last = (first + TRIANGLE_CHUNK).min(surface.triangles.len());
-                let triangles = first..last;
+                let (mut near, mut cells) = (Vec::new(), framed::BoxCells::default());
+                let triangles = pieces[chunk].clone();
                 let rows = boxes[triangles.clone()]
                     .iter()
                     .zip(&surface.triangles[triangles.clone()])
@@ -571,6 +640,34 @@ impl BroadPhase {
                     let face = ids.map(|i| positions[i]);
                     let sided = two_sided(owner);
                     let mut window_reach = window.of_face_once(face);
+                    let candidate = Candidate {
+                        // Node ids fit in u32: ContactSurface::validate checks the count.
+                        nodes: ids.map(|i| i as u32),
+                        triangle: t as u32,
+                        body: owner,
+                    };
+                    // The framed bodies' nodes, which the grid does not hold.
+                    if let Some(spheres) = spheres {
+                        near.clear();
+                        spheres.near_box(bx, &mut cells, &mut near);
+                        for k in near
+                            .iter()
+                            .flat_map(|&b| bodies.nodes(spheres.body(b) as usize))
+                        {
+                            let x = reference[*k as usize];
+                            if in_box(bx, x)
+                                && is_candidate(
+                                    x,
+                                    face,
+                                    reaches,
+                                    (window.depth, &mut window_reach),
+                                    sided,
+                                )
+                            {
+                                pairs.push((*k, candidate));
+                            }
+                        }
+                    }
                     frame.for_each_cell_within(layout, bx, |c| {
                         let Some(cell) = lookup(layout, table, c) else {
                             return;
@@ -591,16 +688,7 @@ impl BroadPhase {
                                     sided,
                                 )
                             {
-                                pairs.push((
-                                    k,
-                                    Candidate {
-                                        // Node ids fit in u32: ContactSurface::validate
-                                        // checks the node count.
-                                        nodes: ids.map(|i| i as u32),
-                                        triangle: t as u32,
-                                        body: owner,
-                                    },
-                                ));
+                                pairs.push((k, candidate));
                             }
                         }
                     });
@@ -609,9 +697,9 @@ impl BroadPhase {
     }
 
     /// Places the pairs into the nodes' lists (compressed rows per chunk of [`CHUNK`]
-    /// nodes): counts per node, row starts, then the chunks' pairs in triangle order, so
-    /// each list is in increasing triangle order; a list that is not then sorted by owner
-    /// body is sorted by (owner body, triangle).
+    /// nodes): counts per node, row starts, then the chunks' pairs in their order (the
+    /// grid scan's in triangle order); a list that is not then sorted by (owner body,
+    /// triangle) is sorted so.
     fn place_pairs(&mut self, surface: &ContactSurface) {
         let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
@@ -658,7 +746,7 @@ impl BroadPhase {
             .for_each(|(cands, starts)| {
                 for row in starts.windows(2) {
                     let mine = &mut cands[row[0]..row[1]];
-                    if !mine.is_sorted_by_key(|c| c.body) {
+                    if !mine.is_sorted_by_key(|c| (c.body, c.triangle)) {
                         mine.sort_unstable_by_key(|c| (c.body, c.triangle));
                     }
                 }

@@ -1690,8 +1690,8 @@ impl ContactModel {
         self.broad.build(
             positions,
             &self.surface,
-            self.margin,
-            self.depth_limit,
+            (self.margin, self.depth_limit),
+            active_frames(&self.rigid_frames, self.frames_active),
             |body| sheets.is_sheet(body),
         );
         self.rebuild_requested = false;

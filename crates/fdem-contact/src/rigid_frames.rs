@@ -41,7 +41,7 @@
 //! above that disagreement (in metres for the planes, in barycentric units, through the
 //! largest gradient of a template's weights, for the feet).
 
-use crate::broad::CHUNK;
+use crate::broad::{CHUNK, FaceCones};
 use crate::mean_motion::{Expected, IDENTITY, Matrix};
 use crate::model::unit_plane;
 use crate::narrow::BARYCENTRIC_TOLERANCE;
@@ -159,6 +159,9 @@ pub(crate) struct RigidFrames {
     feet: Vec<Vec<FootMap>>,
     /// Per template, the largest distance of its nodes from its origin (template units).
     radius: Vec<f64>,
+    /// Per template, its faces as cones of directions from its origin (the full build's
+    /// screen, `crate::broad`).
+    cones: Vec<FaceCones>,
     /// Per framed body (in the order of `bodies`), its surface nodes when the scan may
     /// stand in for them (`NodeRun`).
     node_runs: Vec<Option<NodeRun>>,
@@ -352,10 +355,15 @@ impl RigidFrames {
             .iter()
             .map(|t| t.nodes.iter().map(|&n| norm(n)).fold(0.0, f64::max))
             .collect();
+        let cones = templates
+            .iter()
+            .map(|t| FaceCones::of(&t.nodes, &t.triangles))
+            .collect();
         Ok(RigidFrames {
             planes,
             feet,
             radius,
+            cones,
             references: vec![None; node_runs.len()],
             node_runs,
             scanned_nodes,
@@ -462,6 +470,26 @@ impl RigidFrames {
     /// The surface nodes the scan reads one by one while the frames serve.
     pub(crate) fn scanned_nodes(&self) -> &[std::ops::Range<usize>] {
         &self.scanned_nodes
+    }
+
+    /// Framed body `k`'s pose (`k` in the frames' order).
+    pub(crate) fn pose(&self, k: usize) -> &RigidPose {
+        &self.poses[k]
+    }
+
+    /// Framed body `k`'s template.
+    pub(crate) fn template_of(&self, k: usize) -> u32 {
+        self.bodies[k].template
+    }
+
+    /// Framed body `k`'s first face in the contact surface (its faces are consecutive).
+    pub(crate) fn first_triangle(&self, k: usize) -> u32 {
+        self.bodies[k].first_triangle
+    }
+
+    /// Template `template`'s faces as cones of directions from its origin.
+    pub(crate) fn cones(&self, template: u32) -> &FaceCones {
+        &self.cones[template as usize]
     }
 
     /// The frames' mismatch (m): how far a node may lie from where its pose puts it.

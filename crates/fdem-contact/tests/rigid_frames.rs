@@ -222,6 +222,11 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
         assert!(framed.rigid_frames_in_use() && !plain.rigid_frames_in_use());
         assert_eq!(fa, fb, "step {step}");
         assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(
+            plain.candidate_pairs(),
+            framed.candidate_pairs(),
+            "step {step}"
+        );
         assert_eq!(a.stored_energy.to_bits(), b.stored_energy.to_bits());
         max_contacts = max_contacts.max(a.contacts);
     }
@@ -372,4 +377,113 @@ fn frames_that_do_not_fit_the_surface_are_refused() {
         .set_rigid_frames(&[template], &all, (0.0, &poses), &x)
         .unwrap();
     assert!(plain.set_sheet_bodies(&[2], 1e-4).is_err());
+}
+
+/// A full build meets the framed bodies' faces body by body (the broad phase's `framed`
+/// module): its lists are the grid scan's, pair for pair, at every build of a packing of
+/// 27 bodies of two templates (a sphere and an ellipsoid of axes 1, 0.8, 0.6) and several
+/// sizes, the middle one without a frame, moved by random rigid motions between builds.
+#[test]
+fn a_build_with_frames_lists_the_pairs_of_the_grid_scan() {
+    let mut r = rng(21);
+    let sphere = linear_sphere(1, 0.01);
+    let mut egg = sphere.clone();
+    for n in &mut egg.nodes {
+        n[1] *= 0.8;
+        n[2] *= 0.6;
+    }
+    let meshes = [sphere, egg];
+    let mut bodies = Vec::new();
+    for k in 0..27usize {
+        let cell = [k % 3, (k / 3) % 3, k / 9].map(|c| 0.0091 * c as f64);
+        let jitter = common::scale(common::random_unit(&mut r), 1e-4);
+        let rotation = rotation_matrix(random_rotation(&mut r));
+        let s = r.random_range(0.985..1.015);
+        bodies.push((k % 2, common::add(cell, jitter), rotation, s));
+    }
+    let assembly = {
+        let mut a = MeshAssembly::new();
+        for &(mesh, _, _, _) in &bodies {
+            a.push_instance(&meshes[mesh], &Placement::default())
+                .unwrap();
+        }
+        a
+    };
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let mut plain = model_for(&assembly, params, vec![], 1e-4, Some(1e-3));
+    plain.set_depth_limit(3e-3).unwrap();
+    let mut framed = plain.clone();
+    let templates = [template_of(&meshes[0]), template_of(&meshes[1])];
+    let unframed = 13;
+    let with_frames: Vec<(u32, usize)> = (0..27)
+        .filter(|&b| b != unframed)
+        .map(|b| (b as u32, bodies[b].0))
+        .collect();
+    let place = |bodies: &[(usize, [f64; 3], Mat, f64)]| {
+        let mut x = Vec::new();
+        for &(mesh, origin, rotation, s) in bodies {
+            let a = rotation.map(|row| row.map(|v| v * s));
+            x.extend(
+                meshes[mesh]
+                    .nodes
+                    .iter()
+                    .map(|&t| common::add(origin, apply(a, t))),
+            );
+        }
+        let poses: Vec<RigidPose> = with_frames
+            .iter()
+            .map(|&(b, _)| {
+                let (_, origin, rotation, s) = bodies[b as usize];
+                RigidPose {
+                    to_template: transpose(rotation).map(|row| row.map(|v| v / s)),
+                    origin,
+                    scale: s,
+                }
+            })
+            .collect();
+        (x, poses)
+    };
+    let (x, poses) = place(&bodies);
+    framed
+        .set_rigid_frames(&templates, &with_frames, (0.0, &poses), &x)
+        .unwrap();
+    let n = assembly.n_nodes();
+    let v = vec![[0.0; 3]; n];
+    for round in 0..8 {
+        let t = round as f64 * 1e-6;
+        if round > 0 {
+            for body in &mut bodies {
+                let spin = turn(common::random_unit(&mut r), r.random_range(-0.05..0.05));
+                body.2 = mul(spin, body.2);
+                let shift = common::scale(common::random_unit(&mut r), r.random_range(0.0..1e-4));
+                body.1 = common::add(body.1, shift);
+            }
+        }
+        let (x, poses) = place(&bodies);
+        framed.set_rigid_poses(t, &poses).unwrap();
+        plain.request_rebuild();
+        framed.request_rebuild();
+        let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();
+        let b = framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap();
+        assert!(framed.rigid_frames_in_use(), "round {round}");
+        let pairs = plain.candidate_pairs();
+        eprintln!(
+            "round {round}: {} pairs, {} contacts",
+            pairs.len(),
+            a.contacts
+        );
+        assert!(pairs.len() > 500, "round {round}: {} pairs", pairs.len());
+        assert_eq!(pairs, framed.candidate_pairs(), "round {round}");
+        assert_eq!(fa, fb, "round {round}");
+        assert!(
+            a.contacts > 20 && a.contacts == b.contacts,
+            "{} contacts",
+            a.contacts
+        );
+    }
+    assert_eq!(framed.rebuild_count(), 8);
 }

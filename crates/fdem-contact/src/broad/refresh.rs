@@ -35,7 +35,7 @@ use rayon::prelude::*;
 
 use super::{
     BodyIndex, BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach,
-    in_box, is_candidate,
+    grown_box, in_box, is_candidate,
 };
 use crate::ContactSurface;
 use crate::mean_motion::{Expected, drift2};
@@ -230,18 +230,6 @@ const MAX_CELLS: i64 = 1 << 24;
 /// ... or when one box overlaps more cells than this; a face at a full build overlaps at most about 10^3 (the cell size is
 /// at least an eighth of the largest enlarged face box).
 const MAX_CELLS_PER_BOX: i64 = 1 << 12;
-
-/// The box of a triangle at `positions`, grown by `e` on every side.
-#[inline(always)]
-fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
-    let [a, b, c] = face;
-    let mut bx = [0.0; 6];
-    for d in 0..3 {
-        bx[d] = a[d].min(b[d]).min(c[d]) - e;
-        bx[d + 3] = a[d].max(b[d]).max(c[d]) + e;
-    }
-    bx
-}
 
 /// The reaches of a refresh: the last full build's enlargement and front reach, each grown
 /// by what the extra half skin of relative motion adds (see the module documentation),
