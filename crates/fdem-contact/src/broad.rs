@@ -21,8 +21,9 @@
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
 //! their bounding spheres and their template's faces binned by direction, and the other
-//! faces find their nodes through the same spheres. Every pair still takes the scan's own
-//! test, so the lists are the same.
+//! faces find their nodes through the same spheres; a refresh meets its framed dirty
+//! bodies the same way. Every pair still takes the scan's own test, so the lists are the
+//! same.
 //!
 //! Verlet skin: while every surface node stays within `margin / 2` of its position at the
 //! last build, a node and a triangle that were not candidates were more than `margin +
@@ -425,7 +426,11 @@ impl BroadPhase {
         self.front = FRONT_SKINS * skin + (e - reach);
         let framed_body = |body: u32| frames.is_some_and(|f| f.has(body));
         let spheres = frames.map(|f| {
-            let nodes = (self.reference.as_slice(), &self.bodies);
+            let at = framed::NodeAt {
+                positions: &self.reference,
+                ids: None,
+            };
+            let nodes = (at, &self.bodies);
             framed::SphereGrid::of(nodes, f, &mut self.bins, e)
         });
         let frame = self.bin_nodes(&surface.node_body, framed_body);
@@ -447,7 +452,10 @@ impl BroadPhase {
         );
         if let (Some(frames), Some(spheres)) = (frames, &spheres) {
             let input = framed::ScanInput {
-                reference: &self.reference,
+                nodes: framed::NodeAt {
+                    positions: &self.reference,
+                    ids: None,
+                },
                 positions,
                 surface,
                 bodies: &self.bodies,
@@ -624,13 +632,17 @@ impl BroadPhase {
         let boxes = &self.boxes;
         let (cell_start, cell_nodes) = (&self.cell_start, &self.cell_nodes);
         let (cell_x, cell_body) = (&self.cell_x, &self.cell_body);
-        let (reference, bodies) = (&self.reference, &self.bodies);
+        let bodies = &self.bodies;
+        let at = framed::NodeAt {
+            positions: &self.reference,
+            ids: None,
+        };
         self.found
             .par_iter_mut()
             .enumerate()
             .for_each(|(chunk, pairs)| {
                 pairs.clear();
-                let (mut near, mut cells) = (Vec::new(), framed::BoxCells::default());
+                let mut scratch = Default::default();
                 let triangles = pieces[chunk].clone();
                 let rows = boxes[triangles.clone()]
                     .iter()
@@ -648,14 +660,8 @@ impl BroadPhase {
                     };
                     // The framed bodies' nodes, which the grid does not hold.
                     if let Some(spheres) = spheres {
-                        near.clear();
-                        spheres.near_box(bx, &mut cells, &mut near);
-                        for k in near
-                            .iter()
-                            .flat_map(|&b| bodies.nodes(spheres.body(b) as usize))
-                        {
-                            let x = reference[*k as usize];
-                            if in_box(bx, x)
+                        let mut test = |x| {
+                            in_box(bx, x)
                                 && is_candidate(
                                     x,
                                     face,
@@ -663,10 +669,10 @@ impl BroadPhase {
                                     (window.depth, &mut window_reach),
                                     sided,
                                 )
-                            {
-                                pairs.push((*k, candidate));
-                            }
-                        }
+                        };
+                        let nodes = (at, bodies);
+                        let face = (bx, candidate);
+                        spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
                     }
                     frame.for_each_cell_within(layout, bx, |c| {
                         let Some(cell) = lookup(layout, table, c) else {

@@ -1671,11 +1671,11 @@ impl ContactModel {
                 && refreshed <= policy.max_refreshed_fraction * total
             {
                 let bodies = dirty.iter().filter(|&&d| d).count();
+                let frames = active_frames(&self.rigid_frames, self.frames_active);
                 let refreshed = self.broad.refresh(
-                    positions,
-                    &self.surface,
+                    (positions, &self.surface),
                     (dirty.as_slice(), expected),
-                    self.margin,
+                    (self.margin, frames),
                     |body| sheets.is_sheet(body),
                 );
                 if refreshed {

@@ -379,12 +379,13 @@ fn frames_that_do_not_fit_the_surface_are_refused() {
     assert!(plain.set_sheet_bodies(&[2], 1e-4).is_err());
 }
 
-/// A full build meets the framed bodies' faces body by body (the broad phase's `framed`
-/// module): its lists are the grid scan's, pair for pair, at every build of a packing of
-/// 27 bodies of two templates (a sphere and an ellipsoid of axes 1, 0.8, 0.6) and several
-/// sizes, the middle one without a frame, moved by random rigid motions between builds.
+/// Full builds and refreshes meet the framed bodies body by body (the broad phase's
+/// `framed` module): their lists are the grids', pair for pair, in a packing of 27 bodies
+/// of two templates (a sphere and an ellipsoid of axes 1, 0.8, 0.6) and several sizes, the
+/// middle one without a frame, moved by random rigid motions: at every build, then at
+/// every refresh of a few bodies (framed or not, dirty or beside dirty ones).
 #[test]
-fn a_build_with_frames_lists_the_pairs_of_the_grid_scan() {
+fn builds_and_refreshes_with_frames_list_the_pairs_of_the_grids() {
     let mut r = rng(21);
     let sphere = linear_sphere(1, 0.01);
     let mut egg = sphere.clone();
@@ -486,4 +487,47 @@ fn a_build_with_frames_lists_the_pairs_of_the_grid_scan() {
         );
     }
     assert_eq!(framed.rebuild_count(), 8);
+    // Then a refresh at a time: three bodies drift past half the skin, the others stay (a
+    // policy that refreshes up to half the nodes).
+    let policy = fdem_contact::RefreshPolicy {
+        max_fraction: 0.5,
+        max_refreshed_fraction: 1.0,
+        ..fdem_contact::RefreshPolicy::default()
+    };
+    plain.set_refresh_policy(policy).unwrap();
+    framed.set_refresh_policy(policy).unwrap();
+    for round in 8..16 {
+        let t = round as f64 * 1e-6;
+        // Every other round the body without a frame stays and two of its neighbours move.
+        let (a, b) = ((round * 5) % 27, (round * 11 + 3) % 27);
+        let moved = if round % 2 == 0 {
+            [13, a, b]
+        } else {
+            [4, 22, a]
+        };
+        for &b in &moved {
+            let spin = turn(common::random_unit(&mut r), r.random_range(-0.05..0.05));
+            bodies[b].2 = mul(spin, bodies[b].2);
+            let shift = common::scale(common::random_unit(&mut r), 6e-4);
+            bodies[b].1 = common::add(bodies[b].1, shift);
+        }
+        let (x, poses) = place(&bodies);
+        framed.set_rigid_poses(t, &poses).unwrap();
+        let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();
+        framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap();
+        assert!(framed.rigid_frames_in_use(), "round {round}");
+        assert_eq!(
+            plain.candidate_pairs(),
+            framed.candidate_pairs(),
+            "round {round}"
+        );
+        assert_eq!(fa, fb, "round {round}");
+    }
+    assert_eq!(plain.refresh_count(), framed.refresh_count());
+    assert!(
+        framed.refresh_count() >= 6,
+        "{} refreshes",
+        framed.refresh_count()
+    );
 }

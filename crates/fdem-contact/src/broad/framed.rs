@@ -262,15 +262,15 @@ pub(super) struct SphereGrid {
 }
 
 impl SphereGrid {
-    /// The grid of every framed body's sphere at the reference positions (by surface
-    /// node) of the nodes `bodies` lists, with the bins of enlargement `e` made in `cache`.
+    /// The grid of every framed body's sphere at the positions `nodes` of the surface nodes
+    /// `bodies` lists, with the bins of enlargement `e` made in `cache`.
     pub(super) fn of(
-        (reference, bodies): (&[[f64; 3]], &BodyIndex),
+        (nodes, bodies): (NodeAt<'_>, &BodyIndex),
         frames: &RigidFrames,
         cache: &mut BinCache,
         e: f64,
     ) -> SphereGrid {
-        SphereGrid::new(spheres((reference, bodies), frames, cache, e), e)
+        SphereGrid::new(spheres((nodes, bodies), frames, cache, e), e)
     }
 
     /// The body id of sphere `s`.
@@ -315,6 +315,30 @@ impl SphereGrid {
             let reach = sphere.radius * (1.0 + SCREEN_SLACK);
             if d2 <= reach * reach {
                 out.push(s);
+            }
+        }
+    }
+
+    /// Pushes onto `pairs` the pairs `(k, candidate)` of a face whose enlarged box is `bx`
+    /// with every node `k` (at `nodes`) of the bodies whose sphere meets the box that
+    /// passes `test` (the caller's grid-scan test of its position); `scratch` keeps
+    /// buffers from face to face.
+    pub(super) fn pairs_of_face(
+        &self,
+        (bx, candidate): (&[f64; 6], Candidate),
+        (nodes, bodies): (NodeAt<'_>, &BodyIndex),
+        test: &mut impl FnMut([f64; 3]) -> bool,
+        (near, cells): &mut (Vec<u32>, BoxCells),
+        pairs: &mut Vec<(u32, Candidate)>,
+    ) {
+        near.clear();
+        self.near_box(bx, cells, near);
+        for &k in near
+            .iter()
+            .flat_map(|&s| bodies.nodes(self.body(s) as usize))
+        {
+            if test(nodes.get(k)) {
+                pairs.push((k, candidate));
             }
         }
     }
@@ -388,10 +412,28 @@ pub(super) struct BoxCells {
     spheres: Vec<u32>,
 }
 
-/// What the scan reads: the build's reference positions (by surface node) and positions
-/// (by node id), the surface, its body index, and the candidate test's reaches.
+/// Where the surface nodes are: `positions[ids[k]]` for surface node `k`, or
+/// `positions[k]` without `ids` (the build's reference positions).
+#[derive(Clone, Copy)]
+pub(super) struct NodeAt<'a> {
+    pub(super) positions: &'a [[f64; 3]],
+    pub(super) ids: Option<&'a [usize]>,
+}
+
+impl NodeAt<'_> {
+    #[inline(always)]
+    fn get(&self, k: u32) -> [f64; 3] {
+        match self.ids {
+            Some(ids) => self.positions[ids[k as usize]],
+            None => self.positions[k as usize],
+        }
+    }
+}
+
+/// What the scan reads: the surface nodes' positions, the positions by node id (the
+/// faces' corners), the surface, its body index, and the candidate test's reaches.
 pub(super) struct ScanInput<'a> {
-    pub(super) reference: &'a [[f64; 3]],
+    pub(super) nodes: NodeAt<'a>,
     pub(super) positions: &'a [[f64; 3]],
     pub(super) surface: &'a ContactSurface,
     pub(super) bodies: &'a BodyIndex,
@@ -442,7 +484,7 @@ pub(super) fn framed_pairs(
         let mut near = Vec::new();
         for k in nodes {
             near.clear();
-            grid.near(input.reference[*k as usize], e, &mut near);
+            grid.near(input.nodes.get(*k), e, &mut near);
             for &b in &near {
                 let b = &grid.spheres[b as usize];
                 pairs_with(
@@ -460,9 +502,112 @@ pub(super) fn framed_pairs(
     found
 }
 
+/// A refresh's new pairs of the framed bodies marked in `dirty` (per body id), in both
+/// directions, one list per work item (a pair may come twice; the merge keeps one): per
+/// dirty body, its nodes against the faces of the framed bodies near it and, when such a
+/// body is not dirty itself (its own turn gives them otherwise), that body's nodes against
+/// its faces; the nodes of the bodies without a frame against the dirty bodies' faces;
+/// and the faces of the bodies without a frame against the dirty bodies' nodes. The
+/// spheres are those of the positions `input.nodes`.
+pub(super) fn refreshed_pairs(
+    input: &ScanInput<'_>,
+    frames: &RigidFrames,
+    (dirty, cache): (&[bool], &mut BinCache),
+    two_sided: &(impl Fn(u32) -> bool + Sync),
+) -> Vec<Vec<(u32, Candidate)>> {
+    let e = input.enlargement;
+    let is_dirty = |body: u32| dirty.get(body as usize).is_some_and(|&d| d);
+    if !frames.framed_bodies().any(|(body, _)| is_dirty(body)) {
+        return Vec::new();
+    }
+    let grid = SphereGrid::of((input.nodes, input.bodies), frames, cache, e);
+    let cache = &*cache;
+    let dirty_spheres: Vec<Sphere> = (grid.spheres.iter())
+        .filter(|s| is_dirty(s.body))
+        .copied()
+        .collect();
+    let mut found: Vec<Vec<(u32, Candidate)>> = dirty_spheres
+        .par_chunks(BODY_CHUNK)
+        .map(|chunk| {
+            let (mut pairs, mut near) = (Vec::new(), Vec::new());
+            for d in chunk {
+                near.clear();
+                grid.near(d.centre, d.radius + e, &mut near);
+                let nodes = input.bodies.nodes(d.body as usize);
+                for &b in &near {
+                    let b = &grid.spheres[b as usize];
+                    if b.body == d.body {
+                        continue;
+                    }
+                    pairs_with(input, frames, (cache, b), nodes, two_sided, &mut pairs);
+                    if !is_dirty(b.body) {
+                        let theirs = input.bodies.nodes(b.body as usize);
+                        pairs_with(input, frames, (cache, d), theirs, two_sided, &mut pairs);
+                    }
+                }
+            }
+            pairs
+        })
+        .collect();
+    let dirty_grid = SphereGrid::new(dirty_spheres, e);
+    let loose: Vec<u32> = (0..input.bodies.bodies() as u32)
+        .filter(|&b| !frames.has(b))
+        .flat_map(|b| input.bodies.nodes(b as usize).iter().copied())
+        .collect();
+    found.par_extend(loose.par_chunks(super::CHUNK).map(|nodes| {
+        let (mut pairs, mut near) = (Vec::new(), Vec::new());
+        for k in nodes {
+            near.clear();
+            dirty_grid.near(input.nodes.get(*k), e, &mut near);
+            for &d in &near {
+                let d = &dirty_grid.spheres[d as usize];
+                let node = std::slice::from_ref(k);
+                pairs_with(input, frames, (cache, d), node, two_sided, &mut pairs);
+            }
+        }
+        pairs
+    }));
+    found.par_extend((frames.unframed_faces().par_iter()).map(|faces| {
+        let (mut pairs, mut scratch) = (Vec::new(), Default::default());
+        for t in faces.clone() {
+            unframed_face_pairs(input, (&dirty_grid, t), two_sided, &mut scratch, &mut pairs);
+        }
+        pairs
+    }));
+    found
+}
+
+/// Pushes onto `pairs` the pairs of face `t` (of a body without a frame) with the nodes of
+/// the bodies in `grid` whose sphere meets its enlarged box, by the grid scan's test.
+fn unframed_face_pairs(
+    input: &ScanInput<'_>,
+    (grid, t): (&SphereGrid, usize),
+    two_sided: &(impl Fn(u32) -> bool + Sync),
+    scratch: &mut (Vec<u32>, BoxCells),
+    pairs: &mut Vec<(u32, Candidate)>,
+) {
+    let e = input.enlargement;
+    let (owner, ids) = (input.surface.triangle_body[t], input.surface.triangles[t]);
+    let face = ids.map(|i| input.positions[i]);
+    let bx = grown_box(face, e);
+    let (reaches, sided) = ((e * e, input.front * input.front), two_sided(owner));
+    let window = input.window;
+    let mut window_reach = window.of_face_once(face);
+    let candidate = Candidate {
+        nodes: ids.map(|i| i as u32),
+        triangle: t as u32,
+        body: owner,
+    };
+    let nodes = (input.nodes, input.bodies);
+    let mut test = |x| {
+        in_box(&bx, x) && is_candidate(x, face, reaches, (window.depth, &mut window_reach), sided)
+    };
+    grid.pairs_of_face((&bx, candidate), nodes, &mut test, scratch, pairs);
+}
+
 /// Every framed body's sphere and bins (of enlargement `e`), in the frames' order.
 fn spheres(
-    (reference, bodies): (&[[f64; 3]], &BodyIndex),
+    (nodes, bodies): (NodeAt<'_>, &BodyIndex),
     frames: &RigidFrames,
     cache: &mut BinCache,
     e: f64,
@@ -475,7 +620,7 @@ fn spheres(
             let radius = bodies
                 .nodes(body as usize)
                 .iter()
-                .map(|&k| norm2(sub(reference[k as usize], centre)))
+                .map(|&k| norm2(sub(nodes.get(k), centre)))
                 .fold(0.0, f64::max)
                 .sqrt();
             Sphere {
@@ -517,7 +662,7 @@ fn pairs_with(
     let reaches = (e * e, input.front * input.front);
     let sided = two_sided(b.body);
     for &k in nodes {
-        let x = input.reference[k as usize];
+        let x = input.nodes.get(k);
         if norm2(sub(x, b.centre)) > reach * reach {
             continue;
         }

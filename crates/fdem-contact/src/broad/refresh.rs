@@ -33,12 +33,14 @@
 
 use rayon::prelude::*;
 
+use super::framed;
 use super::{
     BodyIndex, BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach,
     grown_box, in_box, is_candidate,
 };
 use crate::ContactSurface;
 use crate::mean_motion::{Expected, drift2};
+use crate::rigid_frames::RigidFrames;
 
 /// Items (surface nodes or triangles) binned by the cells their boxes overlap, on a dense
 /// grid of a fixed cell size over the boxes' union.
@@ -319,17 +321,74 @@ impl BroadPhase {
     /// resets those bodies' reference positions (to the full build's configuration under
     /// the mean motion's map `expected`, so that they are expected where they are now);
     /// every other pair is kept. `dirty` has an entry per body; a full build must have
-    /// come first. Returns `false`, changing nothing, when a box is too large to bin
+    /// come first. With `frames` (in use at these positions), the framed dirty bodies'
+    /// pairs are found body by body (`super::framed`), the others' on local grids.
+    /// Returns `false`, changing nothing, when a box is too large to bin
     /// ([`MAX_CELLS_PER_BOX`]).
     pub(crate) fn refresh(
         &mut self,
-        positions: &[[f64; 3]],
-        surface: &ContactSurface,
+        (positions, surface): (&[[f64; 3]], &ContactSurface),
         (dirty, expected): (&[bool], Option<&Expected>),
-        skin: f64,
+        (skin, frames): (f64, Option<&RigidFrames>),
         two_sided: impl Fn(u32) -> bool + Sync,
     ) -> bool {
         let reach = RefreshReach::of(self, skin);
+        let on_grids: Vec<bool> = match frames {
+            Some(f) => (dirty.iter().enumerate())
+                .map(|(b, &d)| d && !f.has(b as u32))
+                .collect(),
+            None => dirty.to_vec(),
+        };
+        let mut found = Vec::new();
+        if on_grids.iter().any(|&d| d) {
+            let Some(pairs) = self.grid_pairs((positions, surface), &on_grids, reach, &two_sided)
+            else {
+                return false;
+            };
+            found = pairs;
+        }
+        if let Some(frames) = frames {
+            let input = framed::ScanInput {
+                nodes: framed::NodeAt {
+                    positions,
+                    ids: Some(&surface.surface_nodes),
+                },
+                positions,
+                surface,
+                bodies: &self.bodies,
+                enlargement: reach.enlargement,
+                front: reach.front,
+                window: reach.window,
+            };
+            let dirty_framed = (dirty, &mut self.bins);
+            found.extend(framed::refreshed_pairs(
+                &input,
+                frames,
+                dirty_framed,
+                &two_sided,
+            ));
+        }
+        self.merge_refreshed(surface, dirty, found);
+        let dirty_nodes = self.bodies.nodes_of(dirty);
+        for &k in &dirty_nodes {
+            let x = positions[surface.surface_nodes[k as usize]];
+            self.reference[k as usize] = expected.map_or(x, |e| e.reference(x));
+        }
+        self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
+        self.refreshed_nodes += dirty_nodes.len();
+        self.refreshes += 1;
+        true
+    }
+
+    /// The new pairs of the bodies marked in `dirty`, in both directions, found on local
+    /// grids of their nodes and faces; `None` when a box is too large to bin.
+    fn grid_pairs(
+        &self,
+        (positions, surface): (&[[f64; 3]], &ContactSurface),
+        dirty: &[bool],
+        reach: RefreshReach,
+        two_sided: &(impl Fn(u32) -> bool + Sync),
+    ) -> Option<Vec<Vec<(u32, Candidate)>>> {
         let e = reach.enlargement;
         let dirty_nodes = self.bodies.nodes_of(dirty);
         // Each dirty node binned by the box it reaches, so that a triangle looks only at
@@ -350,11 +409,8 @@ impl BroadPhase {
                 (t, grown_box(face, e))
             })
             .collect();
-        let node_grid = LocalGrid::build(self.cell_size, &node_boxes);
-        let face_grid = LocalGrid::build(self.cell_size, &face_boxes);
-        let (Some(node_grid), Some(face_grid)) = (node_grid, face_grid) else {
-            return false;
-        };
+        let node_grid = LocalGrid::build(self.cell_size, &node_boxes)?;
+        let face_grid = LocalGrid::build(self.cell_size, &face_boxes)?;
         // Only the bodies whose box overlaps an occupied cell of a grid can pair with its
         // items: the scans below skip every other body's faces or nodes, which the grid
         // would give nothing (the same pairs, in the same order).
@@ -365,7 +421,7 @@ impl BroadPhase {
             surface,
             (&node_grid, &self.bodies.triangles_of(&near_nodes)),
             reach,
-            &two_sided,
+            two_sided,
         );
         let near_faces = face_grid.near_bodies(&boxes);
         found.extend(nodes_of_dirty_faces(
@@ -374,17 +430,9 @@ impl BroadPhase {
             dirty,
             (&face_grid, &self.bodies.nodes_of(&near_faces)),
             reach,
-            &two_sided,
+            two_sided,
         ));
-        self.merge_refreshed(surface, dirty, found);
-        for &k in &dirty_nodes {
-            let x = positions[surface.surface_nodes[k as usize]];
-            self.reference[k as usize] = expected.map_or(x, |e| e.reference(x));
-        }
-        self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
-        self.refreshed_nodes += dirty_nodes.len();
-        self.refreshes += 1;
-        true
+        Some(found)
     }
 }
 
