@@ -1,13 +1,17 @@
-//! A full build's pairs with the faces of rigid bodies that have a frame, found body by
-//! body instead of face by face.
+//! The pairs of rigid bodies that have a frame, found body by body instead of face by
+//! face, at a full build and at a refresh.
 //!
 //! The grid scan visits, for every face, the cells its enlarged box overlaps and reads
 //! every node there; on a packing of small rigid particles most of those nodes are the
 //! face's own body's, and the scan's cost is that reading. A framed body's faces are a
 //! template's faces carried by the body's pose (`crate::rigid_frames`), so they can be met
-//! from the other side: for each body `A` (or each node of a body without a frame) the
-//! framed bodies `B` whose bounding sphere can reach it, and for each node of `A` within
-//! `B`'s sphere grown by the enlargement `e`, the faces of `B` toward which the node lies.
+//! from the other side: for each framed body `B` the bodies `A` whose bounding sphere can
+//! reach its sphere (the framed ones on a grid of the spheres, [`SphereGrid`]; the nodes of
+//! a body without a frame one by one), and for each node of `A` within `B`'s sphere grown
+//! by the enlargement `e`, the faces of `B` toward which the node lies. Face body by face
+//! body, so that each body's faces and corners are read in one go. The framed bodies'
+//! nodes then stay out of the grid; a face of a body without a frame (a membrane) finds
+//! them through the spheres that meet its enlarged box ([`SphereGrid::pairs_of_face`]).
 //!
 //! **The screen.** Every pair the grid scan keeps has the node within `e` of the face
 //! (`super::is_candidate` refuses a larger distance). With `x` the node, `u` its template
@@ -22,7 +26,10 @@
 //! do, and the bin is convex), so a face can be within `e` of a node whose direction falls
 //! in the bin only if `angle(c, d_f) <= gamma + alpha_f + beta_f`: the bin lists exactly
 //! those faces. A face with `e_t >= rho_f`, or a template face whose cone is not narrow,
-//! is listed in every bin; a node at the template's origin reads every face.
+//! is listed in every bin; a node at the template's origin reads every face. Of the faces
+//! a bin lists, only those within `e_t` of `u` (the template face's plane first, a lower
+//! bound of the distance, then the distance itself) go on: the template's faces are
+//! shared by its instances and stay in cache, where each world face is a gather.
 //!
 //! Each pair the screen passes then takes the grid scan's own test on the world positions
 //! (the face's enlarged box and `super::is_candidate`), so the lists are those of the grid
@@ -443,10 +450,10 @@ pub(super) struct ScanInput<'a> {
 }
 
 /// The pairs of every surface node with the faces of the bodies `frames` has, one list per
-/// work item: per framed body, its nodes against the framed bodies near it; per chunk of
-/// [`super::CHUNK`] nodes of bodies without a frame, each against the framed bodies near
-/// it. The screen is described in the module documentation; every pair passes the grid
-/// scan's own test.
+/// work item: per framed body, its faces against the nodes of the framed bodies near it;
+/// per chunk of [`super::CHUNK`] nodes of bodies without a frame, each against the framed
+/// bodies near it. The screen is described in the module documentation; every pair passes
+/// the grid scan's own test.
 pub(super) fn framed_pairs(
     input: &ScanInput<'_>,
     frames: &RigidFrames,
