@@ -15,7 +15,7 @@ pub(crate) struct BodyIndex {
 
 /// The rows of `owner` (an owner per item) over `bodies` bodies, items in increasing
 /// order within a row (a counting sort).
-fn rows(owner: &[u32], bodies: usize) -> (Vec<u32>, Vec<u32>) {
+pub(super) fn rows(owner: &[u32], bodies: usize) -> (Vec<u32>, Vec<u32>) {
     let mut start = vec![0u32; bodies + 1];
     for &b in owner {
         start[b as usize + 1] += 1;

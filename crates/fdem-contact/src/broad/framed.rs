@@ -362,19 +362,7 @@ impl SphereGrid {
                 table.insert(pack(i, j, k))
             })
             .collect();
-        let mut start = vec![0u32; table.len + 1];
-        for &c in &cells {
-            start[c as usize + 1] += 1;
-        }
-        for c in 1..start.len() {
-            start[c] += start[c - 1];
-        }
-        let mut cursor = start.clone();
-        let mut items = vec![0u32; spheres.len()];
-        for (i, &c) in cells.iter().enumerate() {
-            items[cursor[c as usize] as usize] = i as u32;
-            cursor[c as usize] += 1;
-        }
+        let (start, items) = super::bodies::rows(&cells, table.len);
         SphereGrid {
             spheres,
             inv,
@@ -717,70 +705,24 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
 
-    /// An icosahedron's faces, subdivided once and pushed onto the unit sphere, then
-    /// stretched: a template like the particles' (42 nodes, 80 faces).
+    /// The faces of a level-1 sphere (42 nodes, 80 faces, diameter 2) stretched along the
+    /// axes: a template like the particles'.
     fn template(stretch: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
-        let p = (1.0 + 5f64.sqrt()) / 2.0;
-        let mut nodes: Vec<[f64; 3]> = vec![
-            [-1.0, p, 0.0],
-            [1.0, p, 0.0],
-            [-1.0, -p, 0.0],
-            [1.0, -p, 0.0],
-            [0.0, -1.0, p],
-            [0.0, 1.0, p],
-            [0.0, -1.0, -p],
-            [0.0, 1.0, -p],
-            [p, 0.0, -1.0],
-            [p, 0.0, 1.0],
-            [-p, 0.0, -1.0],
-            [-p, 0.0, 1.0],
-        ];
-        let faces: Vec<[usize; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        let mut mid = std::collections::BTreeMap::new();
-        let mut split = |a: usize, b: usize, nodes: &mut Vec<[f64; 3]>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                nodes.push([0, 1, 2].map(|d| 0.5 * (nodes[a][d] + nodes[b][d])));
-                nodes.len() - 1
-            })
+        use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec};
+        let spec = SphereSpec {
+            level: 1,
+            order: ElementOrder::Linear,
+            diameter: 2.0,
+            sizing: Sizing::Inscribed,
         };
-        let mut fine = Vec::new();
-        for [a, b, c] in faces {
-            let (ab, bc, ca) = (
-                split(a, b, &mut nodes),
-                split(b, c, &mut nodes),
-                split(c, a, &mut nodes),
-            );
-            fine.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        let nodes = nodes
-            .iter()
-            .map(|&n| {
-                let u = unit(n).unwrap();
-                [0, 1, 2].map(|d| u[d] * stretch[d])
-            })
+        let mesh = fdem_mesh::sphere_mesh(&spec).expect("a valid sphere");
+        let mut one = MeshAssembly::new();
+        one.push_instance(&mesh, &Placement::default())
+            .expect("one instance");
+        let nodes = (mesh.nodes.iter())
+            .map(|n| [0, 1, 2].map(|d| n[d] * stretch[d]))
             .collect();
-        (nodes, fine)
+        (nodes, one.triangles.clone())
     }
 
     /// Every face within the reach of a node is among the faces its bin lists, for nodes
