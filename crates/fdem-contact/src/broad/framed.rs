@@ -470,31 +470,39 @@ pub(super) fn framed_pairs(
             pairs
         })
         .collect();
-    // Nodes of bodies without a frame, each on its own.
-    let loose: Vec<u32> = (0..input.surface.surface_nodes.len() as u32)
-        .filter(|&k| !frames.has(input.surface.node_body[k as usize]))
-        .collect();
-    found.par_extend(loose.par_chunks(super::CHUNK).map(|nodes| {
-        let mut pairs = Vec::new();
-        let mut near = Vec::new();
-        for k in nodes {
-            near.clear();
-            grid.near(input.nodes.get(*k), e, &mut near);
-            for &b in &near {
-                let b = &grid.spheres[b as usize];
-                pairs_with(
-                    input,
-                    frames,
-                    (cache, b),
-                    std::slice::from_ref(k),
-                    two_sided,
-                    &mut pairs,
-                );
-            }
-        }
-        pairs
-    }));
+    found.extend(loose_pairs(input, frames, (grid, cache), two_sided));
     found
+}
+
+/// The pairs of the nodes of the bodies without a frame, each on its own, with the faces
+/// of the framed bodies of `grid` near it, one list per chunk of [`super::CHUNK`] nodes.
+fn loose_pairs(
+    input: &ScanInput<'_>,
+    frames: &RigidFrames,
+    (grid, cache): (&SphereGrid, &BinCache),
+    two_sided: &(impl Fn(u32) -> bool + Sync),
+) -> Vec<Vec<(u32, Candidate)>> {
+    let e = input.enlargement;
+    let loose: Vec<u32> = (0..input.bodies.bodies() as u32)
+        .filter(|&b| !frames.has(b))
+        .flat_map(|b| input.bodies.nodes(b as usize).iter().copied())
+        .collect();
+    loose
+        .par_chunks(super::CHUNK)
+        .map(|nodes| {
+            let (mut pairs, mut near) = (Vec::new(), Vec::new());
+            for k in nodes {
+                near.clear();
+                grid.near(input.nodes.get(*k), e, &mut near);
+                for &b in &near {
+                    let b = &grid.spheres[b as usize];
+                    let node = std::slice::from_ref(k);
+                    pairs_with(input, frames, (cache, b), node, two_sided, &mut pairs);
+                }
+            }
+            pairs
+        })
+        .collect()
 }
 
 /// A refresh's new pairs of the framed bodies marked in `dirty` (per body id), in both
@@ -545,23 +553,7 @@ pub(super) fn refreshed_pairs(
         })
         .collect();
     let dirty_grid = SphereGrid::new(dirty_spheres, e);
-    let loose: Vec<u32> = (0..input.bodies.bodies() as u32)
-        .filter(|&b| !frames.has(b))
-        .flat_map(|b| input.bodies.nodes(b as usize).iter().copied())
-        .collect();
-    found.par_extend(loose.par_chunks(super::CHUNK).map(|nodes| {
-        let (mut pairs, mut near) = (Vec::new(), Vec::new());
-        for k in nodes {
-            near.clear();
-            dirty_grid.near(input.nodes.get(*k), e, &mut near);
-            for &d in &near {
-                let d = &dirty_grid.spheres[d as usize];
-                let node = std::slice::from_ref(k);
-                pairs_with(input, frames, (cache, d), node, two_sided, &mut pairs);
-            }
-        }
-        pairs
-    }));
+    found.extend(loose_pairs(input, frames, (&dirty_grid, cache), two_sided));
     found.par_extend((frames.unframed_faces().par_iter()).map(|faces| {
         let (mut pairs, mut scratch) = (Vec::new(), Default::default());
         for t in faces.clone() {
