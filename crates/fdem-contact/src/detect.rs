@@ -5,12 +5,14 @@
 //! with the rules for sheets and the closest-face rule of [`crate::sheet`]; then the
 //! walls. Each contact is evaluated with the law against its tangential history (the
 //! previous evaluation's contact with the same key) and recorded with what the report
-//! needs. Surface nodes are processed in fixed chunks of [`CHUNK`], each writing its own
-//! records and sums, so the result does not depend on the thread count; the model adds
-//! the forces afterwards, serially in node order.
+//! needs, and what the spread of its force reads ([`SpreadTerm`]). Surface nodes are
+//! processed in fixed chunks of [`CHUNK`], each writing its own records and sums, so the
+//! result does not depend on the thread count; the model adds the forces afterwards, in
+//! the order of the records.
 
 use crate::broad::{BroadPhase, CHUNK, Candidate};
 use crate::events::{Reason, Rejection};
+use crate::history::{Cursor, History};
 use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle, project_hand};
@@ -29,11 +31,34 @@ const PLANE_SLACK: f64 = 1e-9;
 /// ([`Ctx::prefetch_planes`]).
 const PREFETCH_AHEAD: usize = 8;
 
+/// What spreading one contact's force needs, in one cache line: the force on the node,
+/// the node, and the face's nodes with the contact point's weights on them (or a wall).
+/// Node ids are kept in 32 bits, as in the broad phase's candidates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SpreadTerm {
+    /// The force on the node (N): the contact's normal plus tangential force.
+    pub(crate) force: [f64; 3],
+    /// The contact point's barycentric weights on `corners` (zeros for a wall).
+    pub(crate) weights: [f64; 3],
+    /// The node's global id.
+    pub(crate) node: u32,
+    /// The face's three global node ids; for a wall `[NO_FACE, wall, 0]`, and
+    /// `[NO_FACE; 3]` for neither.
+    pub(crate) corners: [u32; 3],
+}
+
+/// The first corner of a [`SpreadTerm`] without a face.
+pub(crate) const NO_FACE: u32 = u32::MAX;
+
 /// One chunk's sums for the report.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Sums {
     /// Sheet hits discarded as fold artefacts.
     pub(crate) discarded: usize,
+    /// Sliding contacts.
+    pub(crate) sliding: usize,
+    /// Contacts with walls.
+    pub(crate) wall_contacts: usize,
     pub(crate) stored: f64,
     pub(crate) normal_damping: f64,
     pub(crate) tangential_damping: f64,
@@ -45,6 +70,8 @@ pub(crate) struct Sums {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ChunkScratch {
     pub(crate) contacts: Vec<NodeContact>,
+    /// Per contact, in the same order, what the spread of its force reads.
+    pub(crate) terms: Vec<SpreadTerm>,
     /// Signed distances of the current node to its candidates' planes.
     signed: Vec<f64>,
     /// Per candidate of the current node, whether its template screened the foot out.
@@ -127,8 +154,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) wall_shapes: &'a [WallShape],
     /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
     pub(crate) planes: &'a [[f64; 4]],
-    /// The contacts of the previous evaluation, sorted by key: the tangential history.
-    pub(crate) previous: &'a [NodeContact],
+    /// The contacts of the previous evaluation, chunk by chunk: the tangential history.
+    pub(crate) previous: &'a History,
     pub(crate) kernel: ProjectionKernel,
     pub(crate) positions: &'a [[f64; 3]],
     pub(crate) velocities: &'a [[f64; 3]],
@@ -155,18 +182,6 @@ pub(crate) struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// The contact `key` of the previous evaluation, if there was one. Keys arrive in
-    /// increasing order within a chunk, and `previous` is sorted by key, so a cursor that
-    /// only moves forward finds them (a merge, not a search per contact).
-    #[inline]
-    fn previous(&self, key: u64, cursor: &mut usize) -> Option<&NodeContact> {
-        let previous = self.previous;
-        while *cursor < previous.len() && previous[*cursor].key < key {
-            *cursor += 1;
-        }
-        previous.get(*cursor).filter(|c| c.key == key)
-    }
-
     /// How far node `k` may move relative to `counterpart` in one step, and the scale
     /// that sets it ([`StepReach`]).
     fn reach(&self, counterpart: Counterpart) -> (f64, TunnellingScale) {
@@ -195,13 +210,13 @@ impl Ctx<'_> {
     /// `scratch`; stops at the first error.
     pub(crate) fn run_chunk(&self, chunk: usize, scratch: &mut ChunkScratch) {
         scratch.contacts.clear();
+        scratch.terms.clear();
         scratch.sums = Sums::default();
         scratch.error = None;
         scratch.rejections.clear();
         let n = self.surface.surface_nodes.len();
         let start = chunk * CHUNK;
-        let first_key = history_key(start, Counterpart::Body(0));
-        let mut cursor = self.previous.partition_point(|c| c.key < first_key);
+        let mut cursor = Cursor::new(self.previous.chunk(chunk));
         let end = (start + CHUNK).min(n);
         for k in start..end {
             if k + PREFETCH_AHEAD < end {
@@ -214,13 +229,20 @@ impl Ctx<'_> {
         }
     }
 
-    /// Asks the memory system for the planes of surface node `k`'s candidates. The planes
-    /// are rewritten every evaluation and the candidates' faces lie on other bodies,
-    /// anywhere in the array: without a hint every signed distance waits for a cache miss.
-    /// A hint changes no value.
+    /// Asks the memory system for the planes of surface node `k`'s candidates, their
+    /// corners' positions and, when it has candidates, the node's contact coefficients.
+    /// The planes are rewritten every evaluation and the candidates' faces lie on other
+    /// bodies, anywhere in the array; the coefficients of the few nodes with contacts are
+    /// read far apart: without a hint each waits for a cache miss. A hint changes no
+    /// value.
     #[inline(always)]
     fn prefetch_planes(&self, k: usize) {
-        for c in self.broad.candidates(k) {
+        let cands = self.broad.candidates(k);
+        if !cands.is_empty() {
+            // The law reads the node's coefficients if a contact forms.
+            prefetch(self.coefficients, k);
+        }
+        for c in cands {
             if !self.frames.is_some_and(|f| f.has(c.body)) {
                 prefetch(self.planes, c.triangle as usize);
             }
@@ -235,7 +257,7 @@ impl Ctx<'_> {
         &self,
         k: usize,
         scratch: &mut ChunkScratch,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
     ) -> Result<(), ContactError> {
         let node = self.surface.surface_nodes[k];
         let x = self.positions[node];
@@ -306,7 +328,7 @@ impl Ctx<'_> {
         cands: &[Candidate],
         (signed, outside): (&[f64], &[bool]),
         scratch: &mut ChunkScratch,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
     ) -> Result<(), ContactError> {
         let reach = Reach::of(self.depth_limit);
         let mut start = 0;
@@ -345,13 +367,13 @@ impl Ctx<'_> {
         v: [f64; 3],
         group: &FaceGroup<'_>,
         sums: &mut Sums,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
     ) -> Result<Result<FaceContact, Reason>, ContactError> {
         self.check_tunnelling(k, v, group)?;
         let is_sheet = self.sheets.is_sheet(group.body);
         let had_contact = is_sheet
-            && self
-                .previous(history_key(k, Counterpart::Body(group.body)), cursor)
+            && cursor
+                .find(history_key(k, Counterpart::Body(group.body)))
                 .is_some();
         let best = if is_sheet {
             sheet::closest_contact(group, had_contact)
@@ -478,7 +500,7 @@ impl Ctx<'_> {
         other: u32,
         contact: FaceContact,
         scratch: &mut ChunkScratch,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
     ) -> Result<(), ContactError> {
         let FaceContact {
             triangle,
@@ -518,7 +540,7 @@ impl Ctx<'_> {
             cursor,
             k,
             counterpart,
-            Some(triangle),
+            Some((triangle, nodes)),
             w,
             point,
             hit.depth,
@@ -539,7 +561,7 @@ impl Ctx<'_> {
         x: [f64; 3],
         v: [f64; 3],
         scratch: &mut ChunkScratch,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
     ) -> Result<(), ContactError> {
         let reach = self.reach.solid;
         for (w, (wall, shape)) in self.walls.iter().zip(self.wall_shapes).enumerate() {
@@ -579,10 +601,10 @@ impl Ctx<'_> {
     fn push(
         &self,
         scratch: &mut ChunkScratch,
-        cursor: &mut usize,
+        cursor: &mut Cursor<'_>,
         k: usize,
         counterpart: Counterpart,
-        face: Option<usize>,
+        face: Option<(usize, [usize; 3])>,
         weights: [f64; 3],
         contact_point: [f64; 3],
         depth: f64,
@@ -590,7 +612,7 @@ impl Ctx<'_> {
         relative_velocity: [f64; 3],
     ) {
         let key = history_key(k, counterpart);
-        let previous = self.previous(key, cursor);
+        let previous = cursor.find(key);
         let mut history = previous.map_or([0.0; 3], |c| c.tangential_displacement);
         let out = evaluate_law(
             &LawInput {
@@ -628,13 +650,28 @@ impl Ctx<'_> {
         sums.tangential_damping += out.tangential_damping_power;
         sums.friction += out.friction_dissipation;
         sums.max_depth = sums.max_depth.max(depth);
+        sums.sliding += usize::from(out.sliding);
         let node = self.surface.surface_nodes[k];
+        let corners = match (face, counterpart) {
+            (Some((_, nodes)), _) => nodes.map(|j| j as u32),
+            (None, Counterpart::Wall(w)) => {
+                sums.wall_contacts += 1;
+                [NO_FACE, w, 0]
+            }
+            (None, Counterpart::Body(_)) => [NO_FACE; 3],
+        };
+        scratch.terms.push(SpreadTerm {
+            force: add(out.normal_force, out.tangential_force),
+            weights,
+            node: node as u32,
+            corners,
+        });
         scratch.contacts.push(NodeContact {
             key,
             node,
             body: self.surface.node_body[k],
             counterpart,
-            face,
+            face: face.map(|(t, _)| t),
             weights,
             position: self.positions[node],
             contact_point,

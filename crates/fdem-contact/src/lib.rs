@@ -79,8 +79,9 @@
 //! - Tangential history is keyed by (node, other body or wall), so it survives a switch of
 //!   face on the same body, and is dropped when the contact opens.
 //! - Parallelism (rayon): surface nodes are processed in fixed chunks of 512, each chunk
-//!   writing its own contact records; forces are then added serially in node order. The
-//!   result is bit-for-bit the same for every thread count.
+//!   writing its own contact records; forces are then added in the serial order of the
+//!   contacts, one thread per range of node ids. The result is bit-for-bit the same for
+//!   every thread count.
 //!
 //! # Modules
 //! - `model`: [`ContactModel`] (set-up, settings, the three passes of
@@ -88,6 +89,8 @@
 //! - `broad`: the node grid and the Verlet skin (candidate faces per surface node).
 //! - `detect`: the narrow-phase pass, the contacts of each surface node against its
 //!   candidates and the walls, evaluated with the law in fixed chunks.
+//! - `history`: the last evaluation's contacts kept chunk by chunk, the next
+//!   evaluation's tangential history.
 //! - `sheet`: what a sheet body is, and the rules contact with it needs (closest point with
 //!   its pseudo-normal, fold depth; the solids' closest-face rule) with their invariants.
 //! - [`events`]: the optional log of contacts whose stored energy jumps in an evaluation.
@@ -128,6 +131,7 @@ mod broad;
 mod detect;
 mod error;
 pub mod events;
+mod history;
 mod law;
 mod mean_motion;
 mod model;

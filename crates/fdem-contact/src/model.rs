@@ -6,8 +6,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::broad::{BroadPhase, CHUNK};
-use crate::detect::{ChunkScratch, Ctx};
+use crate::detect::{ChunkScratch, Ctx, NO_FACE, SpreadTerm};
 use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
+use crate::history::History;
 use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion};
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
@@ -453,7 +454,8 @@ pub struct ContactModel {
     broad: BroadPhase,
     rebuild_requested: bool,
     refresh_policy: RefreshPolicy,
-    contacts: Vec<NodeContact>,
+    /// The last evaluation's contacts: the next one's tangential history.
+    history: History,
     chunks: Vec<ChunkScratch>,
     wall_shapes: Vec<WallShape>,
     wall_forces: Vec<[f64; 3]>,
@@ -653,7 +655,7 @@ impl ContactModel {
             broad: BroadPhase::for_surface(&surface),
             rebuild_requested: true,
             refresh_policy: RefreshPolicy::default(),
-            contacts: Vec::new(),
+            history: History::new(n_chunks),
             chunks: vec![ChunkScratch::default(); n_chunks],
             wall_shapes: Vec::with_capacity(walls.len()),
             planes: Vec::new(),
@@ -855,7 +857,7 @@ impl ContactModel {
     /// and the larger of its dashpots (N s/m): what a stable step over the contact network
     /// counts (the solver's rigid-body bound).
     pub fn contact_springs(&self) -> impl Iterator<Item = (&NodeContact, f64, f64)> + '_ {
-        self.contacts.iter().map(|c| {
+        self.history.iter().map(|c| {
             let k = &self.coefficients[key_surface_index(c.key)];
             let stiffness = k.normal_stiffness.max(k.tangential_stiffness);
             (c, stiffness, k.normal_damping.max(k.tangential_damping))
@@ -1214,7 +1216,7 @@ impl ContactModel {
     /// Active node contacts of the last evaluation, sorted by surface node, then
     /// counterpart (bodies before walls).
     pub fn node_contacts(&self) -> &[NodeContact] {
-        &self.contacts
+        self.history.flat()
     }
 
     /// The report of the last evaluation.
@@ -1232,7 +1234,7 @@ impl ContactModel {
     /// appear once, under the lower body id.
     pub fn pair_sums(&self) -> Vec<PairSum> {
         let mut entries: Vec<(u32, Counterpart, f64, &NodeContact)> = self
-            .contacts
+            .history
             .iter()
             .map(|c| match c.counterpart {
                 Counterpart::Body(b) if b < c.body => (b, Counterpart::Body(c.body), -1.0, c),
@@ -1444,7 +1446,7 @@ impl ContactModel {
     ) -> Result<ContactReport, ContactError> {
         self.check_length("forces", forces.len())?;
         let renewal = self.evaluated.take().ok_or(ContactError::NotEvaluated)?;
-        let before = self.jumps.is_some().then(|| self.contacts.clone());
+        let before = self.jumps.is_some().then(|| self.history.flat().to_vec());
         let report = self.apply_forces(forces, renewal);
         self.report = report;
         self.evaluations += 1;
@@ -1517,7 +1519,7 @@ impl ContactModel {
             .flat_map(|c| c.rejections.iter().copied())
             .collect();
         let (mut i, mut j) = (0, 0);
-        let now = &self.contacts;
+        let now = self.history.flat();
         while i < before.len() || j < now.len() {
             let (b, a) = match (before.get(i), now.get(j)) {
                 (Some(b), Some(a)) if b.key == a.key => (Some(b), Some(a)),
@@ -1756,7 +1758,7 @@ impl ContactModel {
             walls: &self.walls,
             wall_shapes: &self.wall_shapes,
             planes: &self.planes,
-            previous: &self.contacts,
+            previous: &self.history,
             kernel: self.kernel,
             positions,
             velocities,
@@ -1782,10 +1784,9 @@ impl ContactModel {
         }
     }
 
-    /// Adds the chunks' contact forces and the reactions on faces and walls to `forces`,
-    /// keeps the contacts as the next evaluation's history, and sums the report. The
-    /// history's copy runs beside the serial addition of the forces (it reads the same
-    /// records and writes nothing the addition reads).
+    /// Adds the chunks' contact forces and the reactions on faces and walls to `forces`
+    /// ([`spread_forces`]), keeps the contacts as the next evaluation's history (a swap of
+    /// buffers, [`History::keep`]), and sums the report.
     fn apply_forces(&mut self, forces: &mut [[f64; 3]], renewal: Renewal) -> ContactReport {
         let mut report = ContactReport {
             rebuilt: renewal == Renewal::Full,
@@ -1796,33 +1797,19 @@ impl ContactModel {
             candidate_pairs: self.broad.pairs,
             ..ContactReport::default()
         };
-        let (chunks, history) = (&self.chunks, &mut self.contacts);
-        let (triangles, wall_forces) = (&self.surface.triangles, &mut self.wall_forces);
-        let mut spread = || spread_forces(chunks, triangles, forces, wall_forces);
-        let mut keep = || {
-            history.clear();
-            for scratch in chunks {
-                history.extend_from_slice(&scratch.contacts);
-            }
-        };
-        let n: usize = chunks.iter().map(|scratch| scratch.contacts.len()).sum();
-        let (wall_contacts, sliding) = if n >= PARALLEL_HISTORY_MIN {
-            rayon::join(spread, keep).0
-        } else {
-            keep();
-            spread()
-        };
-        report.wall_contacts = wall_contacts;
-        report.sliding = sliding;
+        spread_forces(&self.chunks, forces, &mut self.wall_forces);
+        self.history.keep(&mut self.chunks);
         for s in self.chunks.iter().map(|scratch| &scratch.sums) {
             report.stored_energy += s.stored;
             report.normal_damping_power += s.normal_damping;
             report.tangential_damping_power += s.tangential_damping;
             report.friction_dissipation += s.friction;
+            report.wall_contacts += s.wall_contacts;
+            report.sliding += s.sliding;
             report.max_depth = report.max_depth.max(s.max_depth);
             report.discarded_sheet_hits += s.discarded;
         }
-        report.contacts = self.contacts.len();
+        report.contacts = self.history.len();
         // The wall exerts -(force on the wall) on the particles; its power is v_wall . that.
         report.wall_power = self
             .walls
@@ -1839,74 +1826,95 @@ impl ContactModel {
     }
 }
 
-/// Contacts from which [`ContactModel::add_evaluated_forces`] copies the history on a second
-/// thread while it adds the forces. Small scenes keep one thread, so that a short copy does
-/// not wake another; the value is a choice, not a measured break-even.
-const PARALLEL_HISTORY_MIN: usize = 1 << 12;
+/// Contacts from which [`spread_forces`] splits the nodes among the pool's threads. Small
+/// scenes keep one thread, so that a short spread does not wake another; the value is a
+/// choice, not a measured break-even.
+const PARALLEL_SPREAD_MIN: usize = 1 << 12;
 
-/// Adds the forces of the chunks' contacts, in order, to their nodes, the reactions to the
-/// faces' nodes (spread by the barycentric weights of the contact point: momentum is
-/// conserved to round-off) and to `wall_forces` (zeroed first); returns the numbers of
-/// wall contacts and of sliding contacts.
-fn spread_forces(
-    chunks: &[ChunkScratch],
-    triangles: &[[usize; 3]],
-    forces: &mut [[f64; 3]],
-    wall_forces: &mut [[f64; 3]],
-) -> (usize, usize) {
+/// Adds the forces of the chunks' contacts ([`SpreadTerm`]s), in order, to their nodes,
+/// the reactions to the faces' nodes (spread by the barycentric weights of the contact
+/// point: momentum is conserved to round-off) and to `wall_forces` (zeroed first).
+///
+/// From [`PARALLEL_SPREAD_MIN`] contacts on, the node ids are split into one range per
+/// thread, and each thread walks every contact in order, adding only into its own range:
+/// every node still receives its terms in the serial order, so the sums are the serial
+/// ones bit for bit, whatever the thread count.
+fn spread_forces(chunks: &[ChunkScratch], forces: &mut [[f64; 3]], wall_forces: &mut [[f64; 3]]) {
     wall_forces.fill([0.0; 3]);
-    let (mut wall_contacts, mut sliding) = (0, 0);
-    for contacts in chunks.iter().map(|scratch| &scratch.contacts) {
-        for (i, c) in contacts.iter().enumerate() {
-            prefetch_spread(triangles, forces, contacts, i);
-            let f = c.force();
-            let node = &mut forces[c.node];
-            *node = add(*node, f);
-            match (c.face, c.counterpart) {
-                (Some(t), _) => {
-                    for (j, &w) in triangles[t].iter().zip(&c.weights) {
-                        forces[*j] = sub(forces[*j], scale(f, w));
-                    }
-                }
-                (None, Counterpart::Wall(w)) => {
-                    let w = w as usize;
-                    wall_forces[w] = sub(wall_forces[w], f);
-                    wall_contacts += 1;
-                }
-                (None, Counterpart::Body(_)) => {}
-            }
-            sliding += usize::from(c.sliding);
-        }
+    let n: usize = chunks.iter().map(|scratch| scratch.terms.len()).sum();
+    let threads = rayon::current_num_threads();
+    if n < PARALLEL_SPREAD_MIN || threads < 2 {
+        spread_range(chunks, (forces, 0), Some(wall_forces));
+        return;
     }
-    (wall_contacts, sliding)
+    let size = forces.len().div_ceil(threads).max(1);
+    let mut walls = Some(wall_forces);
+    // The first range also adds the wall forces.
+    let mut ranges: Vec<SpreadRange<'_>> = forces
+        .chunks_mut(size)
+        .enumerate()
+        .map(|(i, range)| (range, i * size, walls.take()))
+        .collect();
+    ranges.par_iter_mut().for_each(|(range, first, walls)| {
+        spread_range(chunks, (range, *first), walls.as_deref_mut());
+    });
 }
 
-/// How many contacts ahead the serial spread asks for the forces it will add into; the
-/// triangles are asked for twice as far ahead ([`prefetch_spread`]).
+/// The forces of one range of node ids (from the id given), and the wall forces if this
+/// range adds them.
+type SpreadRange<'a> = (&'a mut [[f64; 3]], usize, Option<&'a mut [[f64; 3]]>);
+
+/// [`spread_forces`] into the nodes `first .. first + forces.len()` (`forces` holds their
+/// forces), and into `wall_forces` when given.
+fn spread_range(
+    chunks: &[ChunkScratch],
+    (forces, first): (&mut [[f64; 3]], usize),
+    mut wall_forces: Option<&mut [[f64; 3]]>,
+) {
+    // An id below `first` wraps to a huge index: outside the range, like one above it.
+    let own = |j: u32| (j as usize).wrapping_sub(first);
+    for terms in chunks.iter().map(|scratch| &scratch.terms) {
+        for (i, t) in terms.iter().enumerate() {
+            if let Some(ahead) = terms.get(i + SPREAD_AHEAD) {
+                prefetch_spread(forces, ahead, own);
+            }
+            let f = t.force;
+            if let Some(node) = forces.get_mut(own(t.node)) {
+                *node = add(*node, f);
+            }
+            match t.corners {
+                [NO_FACE, NO_FACE, _] => {}
+                [NO_FACE, w, _] => {
+                    if let Some(walls) = wall_forces.as_deref_mut() {
+                        let w = w as usize;
+                        walls[w] = sub(walls[w], f);
+                    }
+                }
+                corners => {
+                    for (j, &w) in corners.iter().zip(&t.weights) {
+                        if let Some(face_node) = forces.get_mut(own(*j)) {
+                            *face_node = sub(*face_node, scale(f, w));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// How many contacts ahead the spread asks for the forces it will add into.
 const SPREAD_AHEAD: usize = 8;
 
-/// Asks the memory system for what the spread of later contacts will touch: the face
-/// triangle of the contact `2 SPREAD_AHEAD` after `contacts[i]`, and the forces of the
-/// node and the face nodes of the one `SPREAD_AHEAD` after it (whose triangle was asked
-/// for earlier). The faces lie on other bodies, anywhere in the arrays: without the
-/// hints the serial spread waits for two cache misses in a row per contact, the triangle
-/// and then its nodes' forces. A hint changes no value.
+/// Asks the memory system for the forces the spread of `term` will add into (those in the
+/// range `forces` holds; `own` maps a node id into it). The faces lie on other bodies,
+/// anywhere in the array: without the hints the spread waits for a cache miss per
+/// contact. A hint changes no value.
 #[inline(always)]
-fn prefetch_spread(
-    triangles: &[[usize; 3]],
-    forces: &[[f64; 3]],
-    contacts: &[NodeContact],
-    i: usize,
-) {
-    if let Some(t) = contacts.get(i + 2 * SPREAD_AHEAD).and_then(|c| c.face) {
-        prefetch(triangles, t);
-    }
-    if let Some(c) = contacts.get(i + SPREAD_AHEAD) {
-        prefetch(forces, c.node);
-        if let Some(tri) = c.face.and_then(|t| triangles.get(t)) {
-            for &j in tri {
-                prefetch(forces, j);
-            }
+fn prefetch_spread(forces: &[[f64; 3]], term: &SpreadTerm, own: impl Fn(u32) -> usize) {
+    prefetch(forces, own(term.node));
+    if term.corners[0] != NO_FACE {
+        for &j in &term.corners {
+            prefetch(forces, own(j));
         }
     }
 }
@@ -1942,7 +1950,7 @@ impl ContactModel {
         ContactCheckpoint {
             history: self.export_history(),
             damping: self
-                .contacts
+                .history
                 .iter()
                 .map(|c| [c.damping_force, c.relative_velocity])
                 .collect(),
@@ -2018,7 +2026,7 @@ impl ContactModel {
         }
         self.import_history(&checkpoint.history)?;
         // The import sorted the entries by key, as the export listed them.
-        for (c, [force, velocity]) in self.contacts.iter_mut().zip(&checkpoint.damping) {
+        for (c, [force, velocity]) in self.history.iter_mut().zip(&checkpoint.damping) {
             c.damping_force = *force;
             c.relative_velocity = *velocity;
         }
@@ -2046,7 +2054,7 @@ impl ContactModel {
     /// does not change results); [`ContactModel::checkpoint`] adds what the energy
     /// bookkeeping carries.
     pub fn export_history(&self) -> Vec<(usize, Counterpart, [f64; 3])> {
-        self.contacts
+        self.history
             .iter()
             .map(|c| (c.node, c.counterpart, c.tangential_displacement))
             .collect()
@@ -2141,8 +2149,86 @@ impl ContactModel {
                 fix,
             });
         }
-        self.contacts = contacts;
+        self.history.replace(&contacts);
         self.rebuild_requested = true;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// Chunks of random spread terms over `n` nodes: face contacts, wall contacts and
+    /// contacts without a face, many nodes hit by several.
+    fn random_chunks(n: u32, contacts: usize) -> Vec<ChunkScratch> {
+        let mut r = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut chunks = vec![ChunkScratch::default(); 5];
+        for i in 0..contacts {
+            let force = [(); 3].map(|_| r.random_range(-1.0..1.0));
+            let a: f64 = r.random_range(0.0..1.0);
+            let b: f64 = r.random_range(0.0..1.0 - a);
+            let corners = match r.random_range(0..10) {
+                0 => [NO_FACE, r.random_range(0..2), 0],
+                1 => [NO_FACE; 3],
+                _ => [(); 3].map(|_| r.random_range(0..n)),
+            };
+            chunks[i * 5 / contacts].terms.push(SpreadTerm {
+                force,
+                weights: [a, b, 1.0 - a - b],
+                node: r.random_range(0..n),
+                corners,
+            });
+        }
+        chunks
+    }
+
+    /// The spread over node ranges gives every node the serial sum, bit for bit, with any
+    /// number of threads (and ranges).
+    #[test]
+    fn the_spread_over_node_ranges_gives_the_serial_sums_bit_for_bit() {
+        let n = 3001;
+        let chunks = random_chunks(n, 2 * PARALLEL_SPREAD_MIN);
+        let spread_with = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut forces = vec![[0.5; 3]; n as usize];
+            let mut walls = vec![[1.0; 3]; 2];
+            pool.install(|| spread_forces(&chunks, &mut forces, &mut walls));
+            (forces, walls)
+        };
+        let (serial, serial_walls) = spread_with(1);
+        // The serial sums, term by term, as the spread before the ranges added them.
+        let mut expected = vec![[0.5; 3]; n as usize];
+        let mut expected_walls = vec![[0.0; 3]; 2];
+        for t in chunks.iter().flat_map(|c| &c.terms) {
+            let node = &mut expected[t.node as usize];
+            *node = add(*node, t.force);
+            match t.corners {
+                [NO_FACE, NO_FACE, _] => {}
+                [NO_FACE, w, _] => {
+                    let w = w as usize;
+                    expected_walls[w] = sub(expected_walls[w], t.force);
+                }
+                corners => {
+                    for (j, w) in corners.iter().zip(t.weights) {
+                        let f = &mut expected[*j as usize];
+                        *f = sub(*f, scale(t.force, w));
+                    }
+                }
+            }
+        }
+        let bits =
+            |f: &[[f64; 3]]| -> Vec<[u64; 3]> { f.iter().map(|v| v.map(f64::to_bits)).collect() };
+        assert_eq!(bits(&serial), bits(&expected));
+        assert_eq!(bits(&serial_walls), bits(&expected_walls));
+        for threads in [2, 3, 7] {
+            let (forces, walls) = spread_with(threads);
+            assert_eq!(bits(&forces), bits(&serial), "{threads} threads");
+            assert_eq!(bits(&walls), bits(&serial_walls), "{threads} threads");
+        }
     }
 }
