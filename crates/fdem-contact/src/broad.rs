@@ -773,8 +773,31 @@ impl BroadPhase {
     /// Candidate faces of surface node `k`.
     #[inline]
     pub(crate) fn candidates(&self, k: usize) -> &[Candidate] {
-        let (chunk, i) = (k / CHUNK, k % CHUNK);
-        let starts = &self.chunk_starts[chunk];
-        &self.chunk_cands[chunk][starts[i]..starts[i + 1]]
+        self.chunk_lists(k / CHUNK).of(k % CHUNK)
+    }
+
+    /// The candidate lists of the surface nodes of chunk `chunk` (`chunk * CHUNK ..`).
+    #[inline]
+    pub(crate) fn chunk_lists(&self, chunk: usize) -> ChunkLists<'_> {
+        ChunkLists {
+            starts: &self.chunk_starts[chunk],
+            cands: &self.chunk_cands[chunk],
+        }
+    }
+}
+
+/// The candidate lists of one chunk of surface nodes ([`BroadPhase::chunk_lists`]): a pass
+/// over the chunk's nodes reads them without looking the chunk up per node.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ChunkLists<'a> {
+    starts: &'a [usize],
+    cands: &'a [Candidate],
+}
+
+impl<'a> ChunkLists<'a> {
+    /// Candidate faces of the chunk's `i`-th surface node.
+    #[inline(always)]
+    pub(crate) fn of(&self, i: usize) -> &'a [Candidate] {
+        &self.cands[self.starts[i]..self.starts[i + 1]]
     }
 }

@@ -31,6 +31,55 @@ const PLANE_SLACK: f64 = 1e-9;
 /// ([`Ctx::prefetch_planes`]).
 const PREFETCH_AHEAD: usize = 8;
 
+/// Relative slack of the test that a body is clear of the walls
+/// ([`bodies_clear_of_walls`]): far above the round-off of a node's wall distance (about
+/// 1e-16 of the coordinates).
+const CLEAR_SLACK: f64 = 1e-9;
+
+/// Marks in `clear` (per body id, resized to `n_bodies`) the framed rigid bodies whose
+/// nodes the narrow phase may pass over when they have no candidate: every node lies in
+/// the ball its pose gives it ([`RigidFrames::ball`]), and that ball stays farther from
+/// every wall than the margin plus the most its nodes can move relative to the wall in
+/// one step (`motions`' speed bound and the wall's speed, times `dt`). Such a node can
+/// neither touch a wall (its distance stays positive) nor trip a wall's tunnelling check
+/// (which needs a distance below the margin plus that motion, `Ctx::wall_contacts`),
+/// and without candidates it meets no face, so passing over it changes no contact and no
+/// error. Bodies without a run of face-corner nodes, or with a motion that is not finite,
+/// are not marked. Like the template-frame distances, this takes the poses of the time
+/// for where the nodes are.
+pub(crate) fn bodies_clear_of_walls(
+    frames: &RigidFrames,
+    motions: &[RigidMotion],
+    (walls, shapes): (&[Wall], &[WallShape]),
+    (margin, dt): (f64, f64),
+    (n_bodies, clear): (usize, &mut Vec<bool>),
+) {
+    clear.clear();
+    clear.resize(n_bodies, false);
+    for (body, k) in frames.framed_bodies() {
+        let (Some(motion), Some(Some(_))) = (motions.get(k), frames.node_runs().get(k)) else {
+            continue;
+        };
+        let (centre, radius) = frames.ball(k);
+        let clear_of = |(wall, shape): (&Wall, &WallShape)| {
+            let Some((distance, _)) = wall_distance(shape, centre) else {
+                return false;
+            };
+            let extent = match *shape {
+                WallShape::Plane { point, .. } => norm(point),
+                WallShape::Cylinder {
+                    axis_point, radius, ..
+                } => norm(axis_point) + radius,
+            };
+            let slack = CLEAR_SLACK * (norm(centre) + radius + extent + margin);
+            let travel = (motion.speed_bound + norm(wall.velocity)) * dt;
+            // Written so that a NaN anywhere leaves the body unmarked.
+            distance - radius - slack >= margin + travel * (1.0 + CLEAR_SLACK)
+        };
+        clear[body as usize] = motion.finite && walls.iter().zip(shapes).all(clear_of);
+    }
+}
+
 /// What spreading one contact's force needs, in one cache line: the force on the node,
 /// the node, and the face's nodes with the contact point's weights on them (or a wall).
 /// Node ids are kept in 32 bits, as in the broad phase's candidates.
@@ -179,6 +228,9 @@ pub(crate) struct Ctx<'a> {
     pub(crate) diagnose: bool,
     /// Whether an evaluation came before this one (its contacts are `previous`).
     pub(crate) evaluated: bool,
+    /// Per body id, whether its nodes without candidates may be passed over
+    /// ([`bodies_clear_of_walls`]; empty: none may).
+    pub(crate) clear_of_walls: &'a [bool],
 }
 
 impl Ctx<'_> {
@@ -217,27 +269,41 @@ impl Ctx<'_> {
         let n = self.surface.surface_nodes.len();
         let start = chunk * CHUNK;
         let mut cursor = Cursor::new(self.previous.chunk(chunk));
+        let lists = self.broad.chunk_lists(chunk);
         let end = (start + CHUNK).min(n);
         for k in start..end {
             if k + PREFETCH_AHEAD < end {
-                self.prefetch_planes(k + PREFETCH_AHEAD);
+                let ahead = k + PREFETCH_AHEAD;
+                self.prefetch_planes(ahead, lists.of(ahead - start));
             }
-            if let Err(e) = self.node(k, scratch, &mut cursor) {
+            let cands = lists.of(k - start);
+            if cands.is_empty() && self.clear_of_walls(k) {
+                continue;
+            }
+            if let Err(e) = self.node(k, cands, scratch, &mut cursor) {
                 scratch.error = Some(e);
                 return;
             }
         }
     }
 
-    /// Asks the memory system for the planes of surface node `k`'s candidates, their
+    /// Whether surface node `k`'s body is clear of the walls in this evaluation
+    /// ([`bodies_clear_of_walls`]): without candidates, the node has no contact then and
+    /// trips no check.
+    #[inline(always)]
+    fn clear_of_walls(&self, k: usize) -> bool {
+        let body = self.surface.node_body[k] as usize;
+        self.clear_of_walls.get(body).copied().unwrap_or(false)
+    }
+
+    /// Asks the memory system for the planes of surface node `k`'s candidates `cands`, their
     /// corners' positions and, when it has candidates, the node's contact coefficients.
     /// The planes are rewritten every evaluation and the candidates' faces lie on other
     /// bodies, anywhere in the array; the coefficients of the few nodes with contacts are
     /// read far apart: without a hint each waits for a cache miss. A hint changes no
     /// value.
     #[inline(always)]
-    fn prefetch_planes(&self, k: usize) {
-        let cands = self.broad.candidates(k);
+    fn prefetch_planes(&self, k: usize, cands: &[Candidate]) {
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
@@ -252,17 +318,18 @@ impl Ctx<'_> {
         }
     }
 
-    /// All contacts of surface node `k`: the best face per other body, then the walls.
+    /// All contacts of surface node `k` (candidates `cands`): the best face per other body,
+    /// then the walls.
     fn node(
         &self,
         k: usize,
+        cands: &[Candidate],
         scratch: &mut ChunkScratch,
         cursor: &mut Cursor<'_>,
     ) -> Result<(), ContactError> {
         let node = self.surface.surface_nodes[k];
         let x = self.positions[node];
         let v = self.velocities[node];
-        let cands = self.broad.candidates(k);
         let mut signed = std::mem::take(&mut scratch.signed);
         let mut outside = std::mem::take(&mut scratch.outside);
         self.signed_distances(x, cands, &mut signed, &mut outside);

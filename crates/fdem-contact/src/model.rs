@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::broad::{BroadPhase, CHUNK};
-use crate::detect::{ChunkScratch, Ctx, NO_FACE, SpreadTerm};
+use crate::detect::{ChunkScratch, Ctx, NO_FACE, SpreadTerm, bodies_clear_of_walls};
 use crate::events::{EnergyJump, JumpKind, JumpLog, Reason, Rejection};
 use crate::history::History;
 use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion};
@@ -457,6 +457,9 @@ pub struct ContactModel {
     /// The last evaluation's contacts: the next one's tangential history.
     history: History,
     chunks: Vec<ChunkScratch>,
+    /// Per body id, whether the narrow phase may pass over its nodes without candidates
+    /// (`detect::bodies_clear_of_walls`), rewritten every evaluation.
+    clear_of_walls: Vec<bool>,
     wall_shapes: Vec<WallShape>,
     wall_forces: Vec<[f64; 3]>,
     /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
@@ -657,6 +660,7 @@ impl ContactModel {
             refresh_policy: RefreshPolicy::default(),
             history: History::new(n_chunks),
             chunks: vec![ChunkScratch::default(); n_chunks],
+            clear_of_walls: Vec::new(),
             wall_shapes: Vec::with_capacity(walls.len()),
             planes: Vec::new(),
             wall_forces: vec![[0.0; 3]; walls.len()],
@@ -1751,6 +1755,17 @@ impl ContactModel {
         guards: Guards,
     ) -> Result<(), ContactError> {
         let frames = active_frames(&self.rigid_frames, self.frames_active);
+        let motions = frames.and_then(|f| f.motions_at(time));
+        match frames.zip(motions) {
+            Some((frames, motions)) => bodies_clear_of_walls(
+                frames,
+                motions,
+                (&self.walls, &self.wall_shapes),
+                (self.margin, dt),
+                (self.broad.n_bodies(), &mut self.clear_of_walls),
+            ),
+            None => self.clear_of_walls.clear(),
+        }
         let ctx = Ctx {
             surface: &self.surface,
             broad: &self.broad,
@@ -1770,9 +1785,10 @@ impl ContactModel {
             check_walls: guards.check_walls,
             sheets: &self.sheets,
             frames,
-            motions: frames.and_then(|f| f.motions_at(time)),
+            motions,
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
+            clear_of_walls: &self.clear_of_walls,
         };
         self.chunks
             .par_iter_mut()

@@ -477,6 +477,18 @@ impl RigidFrames {
         &self.poses[k]
     }
 
+    /// A ball that holds every node of framed body `k` that is a face corner where the
+    /// pose of this time puts it: the pose's origin and the template's radius times the
+    /// scale, grown by the frames' mismatch (m).
+    pub(crate) fn ball(&self, k: usize) -> ([f64; 3], f64) {
+        let pose = &self.poses[k];
+        let template = self.bodies[k].template as usize;
+        (
+            pose.origin,
+            self.radius[template] * pose.scale + self.mismatch,
+        )
+    }
+
     /// Framed body `k`'s template.
     pub(crate) fn template_of(&self, k: usize) -> u32 {
         self.bodies[k].template

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{linear_sphere, model_for, random_rotation, rng};
-use fdem_contact::{ContactModel, ContactParams, RigidMotion, RigidPose, RigidTemplate};
+use fdem_contact::{ContactModel, ContactParams, RigidMotion, RigidPose, RigidTemplate, Wall};
 use fdem_core::geometry::{rigid_velocity, rotation_matrix};
 use fdem_mesh::{MeshAssembly, Placement, TetMesh};
 use rand::RngExt;
@@ -146,13 +146,17 @@ impl Cluster {
 }
 
 fn models(cluster: &Cluster) -> (ContactModel, ContactModel, MeshAssembly) {
+    models_with(cluster, vec![])
+}
+
+fn models_with(cluster: &Cluster, walls: Vec<Wall>) -> (ContactModel, ContactModel, MeshAssembly) {
     let assembly = cluster.assembly();
     let params = ContactParams {
         friction: 0.3,
         ..ContactParams::default()
     };
     let margin = 2e-4;
-    let mut plain = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    let mut plain = model_for(&assembly, params, walls, 1e-4, Some(margin));
     plain.set_depth_limit(2e-3).unwrap();
     let mut framed = plain.clone();
     let template = template_of(&cluster.mesh);
@@ -240,6 +244,69 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
     // The poses' drift bounds renewed the lists when the nodes did.
     assert_eq!(plain.rebuild_count(), framed.rebuild_count());
     assert_eq!(plain.refresh_count(), framed.refresh_count());
+}
+
+/// Node velocities of the cluster's rigid motions at `step`, as a solver places them, and
+/// those motions.
+fn velocities(cluster: &Cluster, x: &[[f64; 3]], step: usize) -> (Vec<[f64; 3]>, Vec<RigidMove>) {
+    let moves = cluster.moves(step);
+    let per_body = x.len() / 8;
+    let v = x
+        .iter()
+        .enumerate()
+        .map(|(i, &xi)| {
+            let [velocity, spin, centre] = moves[i / per_body];
+            rigid_velocity(velocity, spin, centre, xi)
+        })
+        .collect();
+    (v, moves)
+}
+
+/// With poses and motions, the narrow phase passes over the nodes without candidates of
+/// the bodies clear of the walls (a ball from the pose, the margin and a step's motion
+/// away): the contacts, forces and errors are those of the model that visits every node.
+/// A floor rises into the cluster's lower bodies while the upper ones stay clear of it;
+/// then a floor too fast for the depth limit must trip the same tunnelling check.
+#[test]
+fn nodes_clear_of_the_walls_are_passed_over_with_the_same_contacts_and_errors() {
+    let cluster = Cluster::new(5);
+    let floor = Wall::plane([0.0, 0.0, -0.0062], [0.0, 0.0, 1.0]).moving([0.0, 0.0, 10.0]);
+    let side = Wall::plane([0.1, 0.0, 0.0], [-1.0, 0.0, 0.0]);
+    let (mut plain, mut framed, assembly) = models_with(&cluster, vec![floor, side]);
+    let n = assembly.n_nodes();
+    let mut wall_contacts = 0;
+    for step in 0..300 {
+        let (x, t) = (cluster.positions(step), step as f64 * 1e-6);
+        let (v, moves) = velocities(&cluster, &x, step);
+        framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        let m = motions(&v, 1.0 + 1e-9, Some(&moves));
+        framed.set_rigid_motions(t, &m).unwrap();
+        let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();
+        let b = framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap();
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(a.wall_contacts, b.wall_contacts, "step {step}");
+        assert_eq!(plain.wall_forces(), framed.wall_forces(), "step {step}");
+        wall_contacts = wall_contacts.max(a.wall_contacts);
+    }
+    assert!(wall_contacts >= 10, "{wall_contacts} wall contacts");
+
+    // A floor that moves farther in a step than the reach, a millimetre and a half below
+    // the lower bodies: farther than the margin, nearer than the margin and its travel.
+    let fast = Wall::plane([0.0, 0.0, -0.0065], [0.0, 0.0, 1.0]).moving([0.0, 0.0, 3000.0]);
+    let (mut plain, mut framed, _) = models_with(&cluster, vec![fast, side]);
+    let (x, t) = (cluster.positions(0), 0.0);
+    let (v, moves) = velocities(&cluster, &x, 0);
+    framed.set_rigid_poses(t, &cluster.poses(0)).unwrap();
+    framed
+        .set_rigid_motions(t, &motions(&v, 1.0 + 1e-9, Some(&moves)))
+        .unwrap();
+    let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+    let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap_err();
+    let b = framed.add_forces(&x, &v, t, 1e-6, &mut fb).unwrap_err();
+    assert!(a.to_string().contains("wall"), "{a}");
+    assert_eq!(a.to_string(), b.to_string());
 }
 
 /// The scan takes a body's motion for its nodes' speeds: a node moving too fast for the
