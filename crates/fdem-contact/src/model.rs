@@ -1218,7 +1218,9 @@ impl ContactModel {
     }
 
     /// Active node contacts of the last evaluation, sorted by surface node, then
-    /// counterpart (bodies before walls).
+    /// counterpart (bodies before walls). The model keeps them chunk by chunk; the first
+    /// call after an evaluation assembles this list (a copy of every record), later calls
+    /// return it as it is.
     pub fn node_contacts(&self) -> &[NodeContact] {
         self.history.flat()
     }
