@@ -203,16 +203,7 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
     for step in 0..300 {
         let (x, t) = (cluster.positions(step), step as f64 * 1e-6);
         // Node velocities of rigid motions, as a solver places them.
-        let moves = cluster.moves(step);
-        let per_body = x.len() / 8;
-        let v: Vec<[f64; 3]> = x
-            .iter()
-            .enumerate()
-            .map(|(i, &xi)| {
-                let [velocity, spin, centre] = moves[i / per_body];
-                rigid_velocity(velocity, spin, centre, xi)
-            })
-            .collect();
+        let (v, moves) = velocities(&cluster, &x, step);
         framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
         // With their motions on every other step: the scan need not read their nodes, nor
         // the narrow phase their faces' velocities.

@@ -191,11 +191,18 @@ impl TestObserver for TestProgress {
     }
 
     fn shear_plan(&mut self, plan: &TestPlan) {
+        // A test resumed in its shear timed no consolidation steps: no plan to compare with.
+        let versus = if plan.seconds_per_step.is_finite() {
+            format!(
+                " (the plan's {:.2} ms/step came from the first consolidation steps)",
+                1e3 * plan.seconds_per_step
+            )
+        } else {
+            String::new()
+        };
         self.println(format!(
-            "shear: {:.2} ms/step over its first steps (the plan's {:.2} ms/step came from the first \
-             consolidation steps): shear about {}",
+            "shear: {:.2} ms/step over its first steps{versus}: shear about {}",
             1e3 * plan.shear_seconds_per_step,
-            1e3 * plan.seconds_per_step,
             duration(plan.reestimated_shear_seconds),
         ));
     }
