@@ -794,7 +794,9 @@ impl Simulation {
         })
     }
 
-    /// The forces at the current state: zero them, then [`Simulation::add_forces`].
+    /// The forces at the current state: zero them, then [`Simulation::add_forces`], then
+    /// each rigid body's force and torque from its nodes' (a step gathers them with its
+    /// last kick instead).
     fn compute_forces(&mut self) -> Result<(), SolverError> {
         if std::mem::take(&mut self.rigid_nodes_edited) {
             // The nodes were open for editing: rigid bodies' nodes follow their poses (a
@@ -806,7 +808,15 @@ impl Simulation {
             .forces
             .par_chunks_mut(NODE_CHUNK)
             .for_each(|chunk| chunk.fill([0.0; 3]));
-        self.add_forces()
+        self.add_forces()?;
+        let s = &mut self.state;
+        let nodes = [
+            &mut s.positions[..],
+            &mut s.velocities[..],
+            &mut s.forces[..],
+        ];
+        self.rigid.gather(self.gravity, nodes);
+        Ok(())
     }
 
     /// Adds the forces at the current state to the node forces, which must be zero: the
@@ -871,9 +881,6 @@ impl Simulation {
         for c in &mut self.parts.constraints {
             powers.add(c.apply(view, forces)?);
         }
-        if !self.rigid.is_empty() {
-            self.rigid.gather(&state.positions, forces, self.gravity);
-        }
         self.last_powers = powers;
         Ok(())
     }
@@ -886,7 +893,8 @@ impl Simulation {
     ///
     /// A step opens three parallel regions of the rayon pool with deformable bodies
     /// alone (kick, drift and the forces' reset; elements beside the contact detection;
-    /// kick), three more with rigid bodies and one for gravity. Call it from a worker of
+    /// kick), four more with rigid bodies (kick, drift and node placement; poses; motions;
+    /// forces gathered, kick and node velocities) and one for gravity. Call it from a worker of
     /// the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
     /// does: from any other thread every region is a hand-over to the pool and a wake-up.
     pub fn advance(&mut self) -> Result<(), SolverError> {
@@ -921,7 +929,7 @@ impl Simulation {
             &mut s.velocities[..],
             &mut s.forces[..],
         ];
-        let rigid_finite = self.rigid.kick(half, nodes);
+        let rigid_finite = self.rigid.gather_and_kick(half, self.gravity, nodes);
         let finite = kick(&mut self.state, half, &self.chunks) && rigid_finite;
         self.step = step;
         self.time = time;

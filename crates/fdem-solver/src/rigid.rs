@@ -286,7 +286,14 @@ impl RigidState {
     /// World position of the point at `offset` from the centre of mass in the principal
     /// frame (m).
     pub fn point(&self, offset: [f64; 3]) -> [f64; 3] {
-        let r = quaternion(self.orientation).transform_vector(&Vector3::from(offset));
+        self.point_rotated_by(&quaternion(self.orientation), offset)
+    }
+
+    /// [`RigidState::point`] with the orientation's rotation `r` made once for many
+    /// points (the same bits: `quaternion` normalises, a square root and divisions per
+    /// call).
+    fn point_rotated_by(&self, r: &UnitQuaternion<f64>, offset: [f64; 3]) -> [f64; 3] {
+        let r = r.transform_vector(&Vector3::from(offset));
         [0, 1, 2].map(|k| self.position[k] + r[k])
     }
 }
@@ -420,8 +427,9 @@ impl RigidPart {
     /// Positions and velocities of the body's nodes (`x`, `v`: its own node range) from
     /// its pose: `x_i = X + R r_i`, then [`RigidPart::place_velocities`].
     pub(crate) fn place_nodes(&self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
+        let r = quaternion(self.state.orientation);
         for (xi, offset) in x.iter_mut().zip(&self.offsets) {
-            *xi = self.state.point(*offset);
+            *xi = self.state.point_rotated_by(&r, *offset);
         }
         self.place_velocities(x, v);
     }
@@ -463,13 +471,12 @@ impl RigidPart {
     }
 
     /// Sums the node forces into the body's force and torque about its centre, plus its
-    /// weight `m g`.
-    pub(crate) fn gather(&mut self, positions: &[[f64; 3]], forces: &[[f64; 3]], g: [f64; 3]) {
+    /// weight `m g` (`positions`, `forces`: its own node range).
+    fn gather(&mut self, positions: &[[f64; 3]], forces: &[[f64; 3]], g: [f64; 3]) {
         let c = self.state.position;
         let mut force = g.map(|gk| self.inertia.mass * gk);
         let mut torque = [0.0; 3];
-        let nodes = self.first..self.first + self.offsets.len();
-        for (&x, &f) in positions[nodes.clone()].iter().zip(&forces[nodes]) {
+        for (&x, &f) in positions.iter().zip(forces) {
             let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
             let t = fdem_core::geometry::cross(r, f);
             for j in 0..3 {
@@ -657,18 +664,24 @@ impl RigidBodies {
     }
 
     /// Each body's force and torque from its nodes' forces (and its weight).
-    pub(crate) fn gather(&mut self, positions: &[[f64; 3]], forces: &[[f64; 3]], g: [f64; 3]) {
-        use rayon::prelude::*;
-        self.parts
-            .par_iter_mut()
-            .with_min_len(SERIAL_BODIES)
-            .for_each(|p| p.gather(positions, forces, g));
+    pub(crate) fn gather(&mut self, g: [f64; 3], nodes: NodeRanges<'_>) {
+        with_nodes(&mut self.parts, nodes, 0, &|p, [x, _, f]| {
+            p.gather(x, f, g);
+            true
+        });
     }
 
-    /// Second half kick, node velocities from the new momenta; false if a node velocity
-    /// is not finite.
-    pub(crate) fn kick(&mut self, half: f64, nodes: NodeRanges<'_>) -> bool {
-        with_nodes(&mut self.parts, nodes, 0, &|p, [x, v, _]| {
+    /// Second half of a step, body by body in one pass over its nodes: its force and
+    /// torque from its nodes' forces (and its weight), the half kick with them, its node
+    /// velocities from the new momenta; false if a node velocity is not finite.
+    pub(crate) fn gather_and_kick(
+        &mut self,
+        half: f64,
+        g: [f64; 3],
+        nodes: NodeRanges<'_>,
+    ) -> bool {
+        with_nodes(&mut self.parts, nodes, 0, &|p, [x, v, f]| {
+            p.gather(x, f, g);
             p.kick(half);
             p.place_velocities(x, v);
             v.iter().flatten().all(|c| c.is_finite())
@@ -860,7 +873,7 @@ impl RigidBodies {
                 )
             })
             .collect();
-        let network = Network::new(self, springs, &coefficient);
+        let mut network = Network::new(self, springs, &coefficient);
         let apply = |x: &[f64], y: &mut [f64]| network.apply(&scales, x, y);
         Some(lanczos_largest(n, iterations, apply))
     }
@@ -879,7 +892,7 @@ impl RigidBodies {
 /// non-zero (so the result depends on the operator alone). It approaches the largest
 /// eigenvalue from below; the extreme Ritz values converge first, so no
 /// re-orthogonalisation is needed for it.
-fn lanczos_largest(n: usize, iterations: usize, apply: impl Fn(&[f64], &mut [f64])) -> f64 {
+fn lanczos_largest(n: usize, iterations: usize, mut apply: impl FnMut(&[f64], &mut [f64])) -> f64 {
     let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
     let mut q: Vec<f64> = (0..n)
         .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
@@ -901,7 +914,10 @@ fn lanczos_largest(n: usize, iterations: usize, apply: impl Fn(&[f64], &mut [f64
             break;
         }
         betas.push(beta);
-        previous = std::mem::replace(&mut q, w.iter().map(|a| a / beta).collect());
+        std::mem::swap(&mut previous, &mut q);
+        for (qi, wi) in q.iter_mut().zip(&w) {
+            *qi = wi / beta;
+        }
     }
     let m = alphas.len();
     let t = nalgebra::DMatrix::from_fn(m, m, |i, j| match i.abs_diff(j) {
@@ -925,8 +941,20 @@ struct Network {
     springs: Vec<(SpringEnds, f64)>,
     /// Per body, the start of its entries in `acting` (one more than the bodies).
     start: Vec<usize>,
-    /// Spring index and end (0: the spring's own body, pushed by `+f`; 1: the other, `-f`).
-    acting: Vec<(u32, u8)>,
+    /// Per body, the springs acting on it, in spring order.
+    acting: Vec<Acting>,
+    /// The operator's scratch: per body its velocities, per spring its force.
+    velocities: Vec<(Vector3<f64>, Vector3<f64>)>,
+    forces: Vec<Vector3<f64>>,
+}
+
+/// A spring acting on a body: the spring's index, whether the body is the spring's own
+/// (pushed by `+f`) or the other end (`-f`), and the arm from the body's centre.
+#[derive(Clone, Copy)]
+struct Acting {
+    spring: u32,
+    own: bool,
+    arm: Vector3<f64>,
 }
 
 impl Network {
@@ -946,7 +974,8 @@ impl Network {
             })
             .collect();
         // Counting sort of the (spring, end) pairs by body, springs in order within a body.
-        let mut start = vec![0usize; bodies.parts.len() + 1];
+        let n_bodies = bodies.parts.len();
+        let mut start = vec![0usize; n_bodies + 1];
         for (ends, _) in &resolved {
             for (j, _) in ends.iter().flatten() {
                 start[j + 1] += 1;
@@ -956,18 +985,29 @@ impl Network {
             start[j] += start[j - 1];
         }
         let mut cursor = start.clone();
-        let mut acting = vec![(0u32, 0u8); start[bodies.parts.len()]];
+        let empty = Acting {
+            spring: 0,
+            own: true,
+            arm: Vector3::zeros(),
+        };
+        let mut acting = vec![empty; start[n_bodies]];
         for (i, (ends, _)) in resolved.iter().enumerate() {
-            for (end, (j, _)) in ends
+            for (end, &(j, arm)) in ends
                 .iter()
                 .enumerate()
-                .filter_map(|(e, x)| x.map(|x| (e, x)))
+                .filter_map(|(e, x)| x.as_ref().map(|x| (e, x)))
             {
-                acting[cursor[j]] = (i as u32, end as u8);
+                acting[cursor[j]] = Acting {
+                    spring: i as u32,
+                    own: end == 0,
+                    arm,
+                };
                 cursor[j] += 1;
             }
         }
         Network {
+            velocities: vec![(Vector3::zeros(), Vector3::zeros()); n_bodies],
+            forces: vec![Vector3::zeros(); resolved.len()],
             springs: resolved,
             start,
             acting,
@@ -975,45 +1015,49 @@ impl Network {
     }
 
     /// `y = M^-1/2 A M^-1/2 x` over the bodies' six degrees of freedom (`scales`: per
-    /// body `1 / sqrt(m)` and the world-frame `I^-1/2`): each spring's force from the
-    /// stretch rate of its ends, then per body the sum of its springs' forces and moments.
-    fn apply(&self, scales: &[(f64, Matrix3<f64>)], x: &[f64], y: &mut [f64]) {
+    /// body `1 / sqrt(m)` and the world-frame `I^-1/2`): the bodies' velocities, each
+    /// spring's force from the stretch rate of its ends, then per body the sum of its
+    /// springs' forces and moments.
+    fn apply(&mut self, scales: &[(f64, Matrix3<f64>)], x: &[f64], y: &mut [f64]) {
         use rayon::prelude::*;
-        // Velocities of the bodies from the mass-weighted coordinates.
-        let v = |j: usize| {
-            let (s, w) = &scales[j];
-            let lin = Vector3::new(x[6 * j], x[6 * j + 1], x[6 * j + 2]) * *s;
-            let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
-            (lin, ang)
-        };
+        // Velocities of the bodies from the mass-weighted coordinates, once per body (each
+        // spring end reads its body's).
+        self.velocities
+            .par_iter_mut()
+            .with_min_len(SPRINGS_PER_TASK)
+            .zip(scales)
+            .enumerate()
+            .for_each(|(j, (v, (s, w)))| {
+                let lin = Vector3::new(x[6 * j], x[6 * j + 1], x[6 * j + 2]) * *s;
+                let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
+                *v = (lin, ang);
+            });
+        let velocities = &self.velocities;
         let rate = |end: Option<(usize, Vector3<f64>)>| {
             end.map_or(Vector3::zeros(), |(j, r)| {
-                let (lin, ang) = v(j);
+                let (lin, ang) = velocities[j];
                 lin + ang.cross(&r)
             })
         };
-        let forces: Vec<Vector3<f64>> = self
-            .springs
-            .par_iter()
+        self.forces
+            .par_iter_mut()
             .with_min_len(SPRINGS_PER_TASK)
-            .map(|&([a, b], c)| (rate(a) - rate(b)) * c)
-            .collect();
+            .zip(&self.springs)
+            .for_each(|(f, &([a, b], c))| *f = (rate(a) - rate(b)) * c);
+        let (forces, acting, start) = (&self.forces, &self.acting, &self.start);
         y.par_chunks_mut(6)
             .with_min_len(SERIAL_BODIES)
             .enumerate()
             .for_each(|(j, yj)| {
                 let (mut force, mut moment) = (Vector3::zeros(), Vector3::zeros());
-                for &(i, end) in &self.acting[self.start[j]..self.start[j + 1]] {
-                    let f = forces[i as usize];
-                    let Some((_, r)) = self.springs[i as usize].0[end as usize] else {
-                        continue;
-                    };
-                    if end == 0 {
+                for a in &acting[start[j]..start[j + 1]] {
+                    let f = forces[a.spring as usize];
+                    if a.own {
                         force += f;
-                        moment += r.cross(&f);
+                        moment += a.arm.cross(&f);
                     } else {
                         force -= f;
-                        moment -= r.cross(&f);
+                        moment -= a.arm.cross(&f);
                     }
                 }
                 let (s, w) = &scales[j];
