@@ -247,7 +247,7 @@ impl PressurisedMembrane {
     }
 
     /// The pressure forces alone at `nodes`: the membrane adds `p a_in / 3` to each corner,
-    /// `a_in = (b - a) x (c - a) / 2`; summed serially in triangle order.
+    /// `a_in = (b - a) x (c - a) / 2`; summed node by node in triangle order.
     fn pressure_forces(&mut self, nodes: NodeView<'_>) {
         if self.areas.1 != Some(nodes.time) {
             self.evaluate_areas(nodes);
@@ -256,13 +256,14 @@ impl PressurisedMembrane {
         let (n, p) = (self.inner.n_nodes(), self.inner.pressure());
         self.scratch.clear();
         self.scratch.resize(n, [0.0; 3]);
-        for (t, area) in self.triangles.iter().zip(&self.areas.0) {
-            for &i in t {
-                for (f, a) in self.scratch[i].iter_mut().zip(area) {
+        let (areas, incidence) = (&self.areas.0, self.inner.incidence());
+        incidence.for_each_node(&mut self.scratch, |i, f| {
+            for &(t, _) in incidence.of(i) {
+                for (f, a) in f.iter_mut().zip(&areas[t as usize]) {
                     *f += p * a / 6.0;
                 }
             }
-        }
+        });
     }
 }
 
@@ -717,5 +718,64 @@ impl TestModel {
     /// The membrane's contact body id.
     pub fn membrane_body(&self) -> u32 {
         self.membrane_body.0 as u32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::membrane::NODES_PER_TASK;
+
+    /// The pressure forces of the work booking, summed node by node in parallel tasks,
+    /// have the bits of a serial pass over the triangles in order.
+    #[test]
+    fn pressure_forces_node_by_node_equal_the_serial_pass_over_the_triangles() {
+        let spec = MembraneSpec {
+            radius: 0.05,
+            bottom: 0.1,
+            top: 0.3,
+            divisions_around: 100,
+            divisions_along: 100,
+            thickness: 0.002,
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.4,
+            density: 1100.0,
+            added_mass: 0.0,
+        };
+        let mesh = membrane_mesh(&spec).unwrap();
+        let (first, pressure) = (3, 2.5e5);
+        let inner = MembraneForces::new(&mesh, &spec, first, pressure).unwrap();
+        let mut membrane = PressurisedMembrane::new(inner);
+        let wobble = |i: usize, k: usize| 1e-3 * ((3 * i + k) as f64 * 0.37).sin();
+        let positions: Vec<[f64; 3]> = (0..first)
+            .map(|i| [i as f64; 3])
+            .chain(
+                (mesh.positions.iter().enumerate())
+                    .map(|(i, x)| std::array::from_fn(|k| x[k] + wobble(i, k))),
+            )
+            .collect();
+        let velocities = vec![[0.0; 3]; positions.len()];
+        let masses = vec![1.0; positions.len()];
+        membrane.pressure_forces(NodeView {
+            positions: &positions,
+            velocities: &velocities,
+            masses: &masses,
+            time: 0.0,
+            dt: 0.0,
+        });
+        let mut reference = vec![[0.0; 3]; mesh.positions.len()];
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| positions[first + i]);
+            let area = cross(sub(b, a), sub(c, a));
+            for &i in t {
+                for (f, a) in reference[i].iter_mut().zip(&area) {
+                    *f += pressure * a / 6.0;
+                }
+            }
+        }
+        let bits =
+            |f: &[[f64; 3]]| -> Vec<u64> { f.iter().flatten().map(|x| x.to_bits()).collect() };
+        assert!(mesh.positions.len() > 4 * NODES_PER_TASK);
+        assert_eq!(bits(&membrane.scratch), bits(&reference));
     }
 }

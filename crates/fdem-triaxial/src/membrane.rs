@@ -372,7 +372,70 @@ pub struct MembraneForces {
     /// Each triangle's forces on its corners at the state of time `.1`, computed by
     /// [`ForceContribution::prepare`] for the next `add_forces` at that time (scratch).
     prepared: (Vec<CornerForces>, Option<f64>),
+    /// Per node, the triangles it is a corner of.
+    incidence: Incidence,
 }
+
+/// Per membrane node, the triangles it is a corner of, in triangle order, with its corner
+/// in each: a pass over the nodes adds each node's triangle terms in the order a serial
+/// pass over the triangles adds them (so with the same bits), in parallel over nodes.
+#[derive(Clone, Debug)]
+pub(crate) struct Incidence {
+    /// Per node, the start of its entries (one more than the nodes).
+    start: Vec<usize>,
+    /// Triangle index and corner.
+    entries: Vec<(u32, u8)>,
+}
+
+impl Incidence {
+    /// The incidence of `triangles` (local node ids below `n_nodes`): a counting sort of
+    /// the (triangle, corner) pairs by node.
+    fn new(triangles: &[[usize; 3]], n_nodes: usize) -> Incidence {
+        let mut start = vec![0usize; n_nodes + 1];
+        for &i in triangles.iter().flatten() {
+            start[i + 1] += 1;
+        }
+        for i in 1..start.len() {
+            start[i] += start[i - 1];
+        }
+        let mut cursor = start.clone();
+        let mut entries = vec![(0u32, 0u8); start[n_nodes]];
+        for (t, corners) in triangles.iter().enumerate() {
+            for (corner, &i) in corners.iter().enumerate() {
+                entries[cursor[i]] = (t as u32, corner as u8);
+                cursor[i] += 1;
+            }
+        }
+        Incidence { start, entries }
+    }
+
+    /// The triangles of node `i` with its corner in each, in triangle order.
+    #[inline]
+    pub(crate) fn of(&self, i: usize) -> &[(u32, u8)] {
+        &self.entries[self.start[i]..self.start[i + 1]]
+    }
+
+    /// Calls `f(i, value)` for every node `i` with its entry of `values` (one per node), in
+    /// parallel over tasks of [`NODES_PER_TASK`] nodes.
+    pub(crate) fn for_each_node<T: Send>(
+        &self,
+        values: &mut [T],
+        f: impl Fn(usize, &mut T) + Sync,
+    ) {
+        values
+            .par_chunks_mut(NODES_PER_TASK)
+            .enumerate()
+            .for_each(|(chunk, out)| {
+                let first = chunk * NODES_PER_TASK;
+                for (j, value) in out.iter_mut().enumerate() {
+                    f(first + j, value);
+                }
+            });
+    }
+}
+
+/// Membrane nodes per parallel task of the passes over the nodes.
+pub(crate) const NODES_PER_TASK: usize = 2048;
 
 /// One triangle's forces on its corners: the elastic part per corner and the follower
 /// pressure's share, the same for each corner.
@@ -480,6 +543,7 @@ impl MembraneForces {
             g,
             step,
             prepared: (Vec::new(), None),
+            incidence: Incidence::new(&mesh.triangles, n_nodes),
         })
     }
 
@@ -510,6 +574,10 @@ impl MembraneForces {
     /// The triangles (local ids), normals toward the axis.
     pub fn triangles(&self) -> &[[usize; 3]] {
         &self.triangles
+    }
+    /// Per node, the triangles it is a corner of.
+    pub(crate) fn incidence(&self) -> &Incidence {
+        &self.incidence
     }
     /// The triangles in global node ids, for the contact surface.
     pub fn global_triangles(&self) -> Vec<[usize; 3]> {
@@ -849,12 +917,21 @@ impl ForceContribution for MembraneForces {
             self.evaluate_corner_forces(nodes);
         }
         self.prepared.1 = None;
-        // Serial, in element order: the additions into each node's force keep one order.
+        // Node by node, each in element order: the additions into each node's force keep
+        // one order.
         let f0 = self.first_node;
+        let prepared = &self.prepared.0;
+        let own = &mut forces[f0..f0 + self.n_nodes];
+        self.incidence.for_each_node(own, |i, f| {
+            for &(e, corner) in self.incidence.of(i) {
+                let cf = &prepared[e as usize];
+                *f = add(*f, add(cf.elastic[corner as usize], cf.pressure));
+            }
+        });
+        // The pressure's power, serial in element order (one order of the sum).
         let mut power = 0.0;
-        for (el, cf) in self.elements.iter().zip(&self.prepared.0) {
-            for (&i, fe) in el.nodes.iter().zip(&cf.elastic) {
-                forces[f0 + i] = add(forces[f0 + i], add(*fe, cf.pressure));
+        for (el, cf) in self.elements.iter().zip(prepared) {
+            for &i in &el.nodes {
                 power += dot(cf.pressure, nodes.velocities[f0 + i]);
             }
         }
@@ -1334,6 +1411,50 @@ mod tests {
         let (f_new_spot, _) = forces(&mut mf, &p, &v);
         assert_eq!(bits(&f_new_pressure), bits(&f_new_spot));
         assert_ne!(bits(&f_new_pressure), bits(&f_spot));
+    }
+
+    /// The node-by-node addition (in parallel tasks) gives each node the bits of a serial
+    /// pass over the triangles in order, onto forces already there, and the power of that
+    /// pass; the membrane's nodes start after other nodes (the global ids' offset).
+    #[test]
+    fn forces_added_node_by_node_equal_the_serial_pass_over_the_triangles() {
+        let s = spec(100, 100, 0.2);
+        let m = membrane_mesh(&s).unwrap();
+        let first = 7;
+        assert!(m.positions.len() > 4 * NODES_PER_TASK);
+        let mut mf = MembraneForces::new(&m, &s, first, 3e5).unwrap();
+        let mut st = 7u64;
+        let n = first + m.positions.len();
+        let p: Vec<V3> = (0..n)
+            .map(|i| match i.checked_sub(first) {
+                Some(j) => add(m.positions[j], jitter(&mut st, 2e-3)),
+                None => jitter(&mut st, 1.0),
+            })
+            .collect();
+        let v: Vec<V3> = p.iter().map(|_| jitter(&mut st, 0.5)).collect();
+        let start: Vec<V3> = p.iter().map(|_| jitter(&mut st, 3.0)).collect();
+        let masses = vec![1.0; n];
+        let view = NodeView {
+            positions: &p,
+            velocities: &v,
+            masses: &masses,
+            time: 0.0,
+            dt: 0.0,
+        };
+        let mut reference = start.clone();
+        let mut power = 0.0;
+        for el in &mf.elements {
+            let cf = mf.corner_forces(el, &p);
+            for (&i, fe) in el.nodes.iter().zip(&cf.elastic) {
+                reference[first + i] = add(reference[first + i], add(*fe, cf.pressure));
+                power += dot(cf.pressure, v[first + i]);
+            }
+        }
+        let mut forces = start;
+        let powers = mf.add_forces(view, &mut forces).unwrap();
+        let bits = |f: &[V3]| -> Vec<u64> { f.iter().flatten().map(|x| x.to_bits()).collect() };
+        assert_eq!(bits(&forces), bits(&reference));
+        assert_eq!(powers.external.to_bits(), power.to_bits());
     }
 
     #[test]
