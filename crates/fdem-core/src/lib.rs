@@ -63,6 +63,7 @@ pub mod hash;
 pub mod huge_pages;
 pub mod number;
 pub mod plot;
+pub mod rows;
 pub mod run_id;
 pub mod sections;
 pub mod snapshot;

@@ -24,6 +24,7 @@
 use crate::SolverError;
 use fdem_core::geometry::{is_finite, norm};
 use fdem_core::number::Number;
+use fdem_core::rows::Rows;
 use nalgebra::{Matrix3, SymmetricEigen, Unit, UnitQuaternion, Vector3};
 
 /// Mass properties of a rigid body.
@@ -939,10 +940,8 @@ fn lanczos_largest(n: usize, iterations: usize, mut apply: impl FnMut(&[f64], &m
 struct Network {
     /// Per spring, its two ends and its coefficient.
     springs: Vec<(SpringEnds, f64)>,
-    /// Per body, the start of its entries in `acting` (one more than the bodies).
-    start: Vec<usize>,
     /// Per body, the springs acting on it, in spring order.
-    acting: Vec<Acting>,
+    acting: Rows<Acting>,
     /// The operator's scratch: per body its velocities, per spring its force.
     velocities: Vec<(Vector3<f64>, Vector3<f64>)>,
     forces: Vec<Vector3<f64>>,
@@ -973,43 +972,30 @@ impl Network {
                 ([a, b], coefficient(s))
             })
             .collect();
-        // Counting sort of the (spring, end) pairs by body, springs in order within a body.
+        // Per body, the (spring, end) pairs acting on it, springs in order.
         let n_bodies = bodies.parts.len();
-        let mut start = vec![0usize; n_bodies + 1];
-        for (ends, _) in &resolved {
-            for (j, _) in ends.iter().flatten() {
-                start[j + 1] += 1;
-            }
-        }
-        for j in 1..start.len() {
-            start[j] += start[j - 1];
-        }
-        let mut cursor = start.clone();
-        let empty = Acting {
-            spring: 0,
-            own: true,
-            arm: Vector3::zeros(),
-        };
-        let mut acting = vec![empty; start[n_bodies]];
-        for (i, (ends, _)) in resolved.iter().enumerate() {
-            for (end, &(j, arm)) in ends
-                .iter()
-                .enumerate()
-                .filter_map(|(e, x)| x.as_ref().map(|x| (e, x)))
-            {
-                acting[cursor[j]] = Acting {
-                    spring: i as u32,
-                    own: end == 0,
-                    arm,
-                };
-                cursor[j] += 1;
-            }
-        }
+        let pairs = (resolved.iter().enumerate())
+            .flat_map(|(i, (ends, _))| {
+                (ends.iter().enumerate()).filter_map(move |(end, x)| {
+                    x.map(|(j, arm)| {
+                        let own = end == 0;
+                        (
+                            j,
+                            Acting {
+                                spring: i as u32,
+                                own,
+                                arm,
+                            },
+                        )
+                    })
+                })
+            })
+            .collect();
+        let acting = Rows::by_key(n_bodies, pairs);
         Network {
             velocities: vec![(Vector3::zeros(), Vector3::zeros()); n_bodies],
             forces: vec![Vector3::zeros(); resolved.len()],
             springs: resolved,
-            start,
             acting,
         }
     }
@@ -1044,13 +1030,13 @@ impl Network {
             .with_min_len(SPRINGS_PER_TASK)
             .zip(&self.springs)
             .for_each(|(f, &([a, b], c))| *f = (rate(a) - rate(b)) * c);
-        let (forces, acting, start) = (&self.forces, &self.acting, &self.start);
+        let (forces, acting) = (&self.forces, &self.acting);
         y.par_chunks_mut(6)
             .with_min_len(SERIAL_BODIES)
             .enumerate()
             .for_each(|(j, yj)| {
                 let (mut force, mut moment) = (Vector3::zeros(), Vector3::zeros());
-                for a in &acting[start[j]..start[j + 1]] {
+                for a in acting.row(j) {
                     let f = forces[a.spring as usize];
                     if a.own {
                         force += f;

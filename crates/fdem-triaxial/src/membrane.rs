@@ -28,6 +28,7 @@
 
 use fdem_core::geometry::{add, cross, dot, norm, scale, sub};
 use fdem_core::number::Number;
+use fdem_core::rows::Rows;
 use fdem_solver::{ForceContribution, NodeView, Powers, SolverError, StepBound};
 use rayon::prelude::*;
 
@@ -380,39 +381,23 @@ pub struct MembraneForces {
 /// in each: a pass over the nodes adds each node's triangle terms in the order a serial
 /// pass over the triangles adds them (so with the same bits), in parallel over nodes.
 #[derive(Clone, Debug)]
-pub(crate) struct Incidence {
-    /// Per node, the start of its entries (one more than the nodes).
-    start: Vec<usize>,
-    /// Triangle index and corner.
-    entries: Vec<(u32, u8)>,
-}
+pub(crate) struct Incidence(Rows<(u32, u8)>);
 
 impl Incidence {
-    /// The incidence of `triangles` (local node ids below `n_nodes`): a counting sort of
-    /// the (triangle, corner) pairs by node.
+    /// The incidence of `triangles` (local node ids below `n_nodes`).
     fn new(triangles: &[[usize; 3]], n_nodes: usize) -> Incidence {
-        let mut start = vec![0usize; n_nodes + 1];
-        for &i in triangles.iter().flatten() {
-            start[i + 1] += 1;
-        }
-        for i in 1..start.len() {
-            start[i] += start[i - 1];
-        }
-        let mut cursor = start.clone();
-        let mut entries = vec![(0u32, 0u8); start[n_nodes]];
-        for (t, corners) in triangles.iter().enumerate() {
-            for (corner, &i) in corners.iter().enumerate() {
-                entries[cursor[i]] = (t as u32, corner as u8);
-                cursor[i] += 1;
-            }
-        }
-        Incidence { start, entries }
+        let pairs = (triangles.iter().enumerate())
+            .flat_map(|(t, corners)| {
+                (corners.iter().enumerate()).map(move |(corner, &i)| (i, (t as u32, corner as u8)))
+            })
+            .collect();
+        Incidence(Rows::by_key(n_nodes, pairs))
     }
 
     /// The triangles of node `i` with its corner in each, in triangle order.
     #[inline]
     pub(crate) fn of(&self, i: usize) -> &[(u32, u8)] {
-        &self.entries[self.start[i]..self.start[i + 1]]
+        self.0.row(i)
     }
 
     /// Calls `f(i, value)` for every node `i` with its entry of `values` (one per node), in
