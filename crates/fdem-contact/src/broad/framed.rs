@@ -593,6 +593,12 @@ fn unframed_face_pairs(
 }
 
 /// Every framed body's sphere and bins (of enlargement `e`), in the frames' order.
+///
+/// A body whose surface nodes are a run of its faces' corners (`RigidFrames::node_runs`)
+/// takes the ball its pose gives it (`RigidFrames::ball`: every such node lies in it), so
+/// that no node is read; any other body the farthest of its nodes at `nodes`. The sphere is
+/// a screen only (every pair it lets through passes the grid scan's own test), so a radius
+/// larger by the frames' mismatch lists the same pairs.
 fn spheres(
     (nodes, bodies): (NodeAt<'_>, &BodyIndex),
     frames: &RigidFrames,
@@ -600,16 +606,20 @@ fn spheres(
     e: f64,
 ) -> Vec<Sphere> {
     let framed: Vec<(u32, usize)> = frames.framed_bodies().collect();
+    let runs = frames.node_runs();
     let mut spheres: Vec<Sphere> = framed
         .par_iter()
         .map(|&(body, slot)| {
-            let centre = frames.pose(slot).origin;
-            let radius = bodies
-                .nodes(body as usize)
-                .iter()
-                .map(|&k| norm2(sub(nodes.get(k), centre)))
-                .fold(0.0, f64::max)
-                .sqrt();
+            let (centre, radius) = match runs.get(slot) {
+                Some(Some(_)) => frames.ball(slot),
+                _ => {
+                    let centre = frames.pose(slot).origin;
+                    let farthest = (bodies.nodes(body as usize).iter())
+                        .map(|&k| norm2(sub(nodes.get(k), centre)))
+                        .fold(0.0, f64::max);
+                    (centre, farthest.sqrt())
+                }
+            };
             Sphere {
                 body,
                 slot: slot as u32,
@@ -620,11 +630,19 @@ fn spheres(
         })
         .collect();
     let reach = e * (1.0 + SCREEN_SLACK);
+    // Bodies of one template and scale share their bins: look them up once per run of such
+    // bodies (the lookup takes logarithms).
+    let mut last: Option<((u32, u64), u32)> = None;
     for s in &mut spheres {
         let slot = s.slot as usize;
         let template = frames.template_of(slot);
         let scale = frames.pose(slot).scale;
-        s.bins = cache.index(template, reach / scale, frames.cones(template)) as u32;
+        let key = (template, scale.to_bits());
+        s.bins = match last {
+            Some((k, bins)) if k == key => bins,
+            _ => cache.index(template, reach / scale, frames.cones(template)) as u32,
+        };
+        last = Some((key, s.bins));
     }
     spheres
 }

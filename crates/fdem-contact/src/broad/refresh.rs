@@ -409,8 +409,12 @@ impl BroadPhase {
                 (t, grown_box(face, e))
             })
             .collect();
-        let node_grid = LocalGrid::build(self.cell_size, &node_boxes)?;
-        let face_grid = LocalGrid::build(self.cell_size, &face_boxes)?;
+        // Two serial counting sorts over dense grids, independent of each other.
+        let (node_grid, face_grid) = rayon::join(
+            || LocalGrid::build(self.cell_size, &node_boxes),
+            || LocalGrid::build(self.cell_size, &face_boxes),
+        );
+        let (node_grid, face_grid) = (node_grid?, face_grid?);
         // Only the bodies whose box overlaps an occupied cell of a grid can pair with its
         // items: the scans below skip every other body's faces or nodes, which the grid
         // would give nothing (the same pairs, in the same order).
