@@ -199,6 +199,10 @@ pub(crate) struct BroadPhase {
     listed: Vec<bool>,
     /// The faces the last refresh marked in `listed` that were not marked before it.
     newly_listed: Vec<u32>,
+    /// Per surface node and per triangle, whether the refresh under way renews them one by
+    /// one ([`refresh::Dirt`]); all `false` between refreshes.
+    single_nodes: Vec<bool>,
+    single_faces: Vec<bool>,
     /// Enlarged triangle boxes at the last build.
     boxes: Vec<[f64; 6]>,
     layout: Layout,

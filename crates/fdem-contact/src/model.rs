@@ -379,7 +379,8 @@ pub struct ContactReport {
     /// Whether the broad phase was rebuilt in this evaluation (every pair).
     pub rebuilt: bool,
     /// Bodies whose pairs the broad phase refreshed in this evaluation, having drifted past
-    /// half the margin (0 without a refresh, and at a full build).
+    /// half the margin (0 without a refresh, and at a full build). Sheets, whose drifted
+    /// nodes are refreshed one by one, are not counted.
     pub refreshed_bodies: usize,
     /// Candidate (surface node, triangle) pairs of the current broad phase.
     pub candidate_pairs: usize,
@@ -714,7 +715,9 @@ impl ContactModel {
     /// particles: the hit is discarded and counted in
     /// [`ContactReport::discarded_sheet_hits`] (the caller checks containment by other
     /// means, as the triaxial test does every output). The crate's `sheet` module explains
-    /// these rules and their invariants.
+    /// these rules and their invariants. A partial refresh of the broad phase renews a
+    /// sheet's pairs node by node (its drifted nodes and the faces they are corners of),
+    /// not the whole sheet.
     ///
     /// # Errors
     /// [`ContactError::InvalidLength`] for a `fold_depth` that is not finite and > 0.
@@ -1670,26 +1673,31 @@ impl ContactModel {
             let near = policy.near * half;
             let expected = drift.expected.as_ref();
             let clean = self.clearly_clean(expected, near);
-            let (dirty, nodes) =
+            // A sheet is renewed node by node: one drifted node of a membrane would
+            // otherwise renew all of its pairs.
+            let dirt =
                 self.broad
-                    .drifted_bodies(positions, &self.surface, (near, &clean), expected);
+                    .drifted(positions, &self.surface, (near, &clean), expected, |body| {
+                        sheets.is_sheet(body)
+                    });
+            let nodes = self.broad.renewed_nodes(&dirt);
             let total = self.surface.surface_nodes.len() as f64;
             let refreshed = (self.broad.refreshed_nodes() + nodes) as f64;
             if nodes as f64 <= policy.max_fraction * total
                 && refreshed <= policy.max_refreshed_fraction * total
             {
-                let bodies = dirty.iter().filter(|&&d| d).count();
+                let bodies = dirt.whole_bodies();
                 let frames = active_frames(&self.rigid_frames, self.frames_active);
                 let refreshed = self.broad.refresh(
                     (positions, &self.surface),
-                    (dirty.as_slice(), expected),
+                    (&dirt, expected),
                     (self.margin, frames),
                     |body| sheets.is_sheet(body),
                 );
                 if refreshed {
                     let current = self.frames_active;
                     if let Some(frames) = self.rigid_frames.as_mut() {
-                        frames.refresh_references(&dirty, expected, current);
+                        frames.refresh_references(&dirt.bodies, expected, current);
                     }
                     return Renewal::Refresh { bodies };
                 }

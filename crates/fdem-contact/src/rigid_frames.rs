@@ -417,6 +417,12 @@ impl RigidFrames {
         &self.unframed
     }
 
+    /// Body `body`'s place in the frames' order, if it has a frame.
+    pub(crate) fn slot_of(&self, body: u32) -> Option<usize> {
+        let slot = *self.slot.get(body as usize)?;
+        (slot != NO_FRAME).then_some(slot as usize)
+    }
+
     /// Whether `body` has a frame.
     #[inline(always)]
     pub(crate) fn has(&self, body: u32) -> bool {

@@ -570,6 +570,251 @@ fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
 }
 
 #[test]
+fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() {
+    // The cluster of the test above with body 1 declared a sheet, its bodies oscillating
+    // 0.12 margin, and one surface node of the sheet (a vertex) moving on its own: it
+    // slides six margins across its nearest neighbour while poking into it by up to half a
+    // margin, so it drifts past half the margin again and again while the rest of the
+    // sheet stays below a quarter of it. The refresh renews
+    // the sheet node by node (its drifted node and the faces around it). Forces and
+    // contacts must agree bit for bit with full builds at every evaluation, and refreshes
+    // that renewed no whole body (the sheet's node alone) must have happened.
+    let margin = 2e-4;
+    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
+    assert!(assembly.n_bodies() >= 5, "{} bodies", assembly.n_bodies());
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    let sheet = 1u32;
+    let mut refreshing = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    let mut rebuilding = model_for(&assembly, params, vec![], 1e-4, Some(margin));
+    let depth_limit = 3.0 * margin;
+    for m in [&mut refreshing, &mut rebuilding] {
+        m.set_depth_limit(depth_limit).unwrap();
+        m.set_sheet_bodies(&[sheet], depth_limit).unwrap();
+    }
+    // The sheet's surface node nearest to another body's, pushed towards it: the vertex
+    // pokes into the neighbour (its own pairs) and the faces around it sweep over the
+    // neighbour's nodes (their pairs).
+    let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
+    let others: Vec<usize> = (0..assembly.n_bodies())
+        .filter(|&b| b != sheet as usize)
+        .flat_map(|b| assembly.surface_nodes[assembly.bodies[b].surface_nodes.clone()].to_vec())
+        .collect();
+    let (rattler, target) = own
+        .iter()
+        .flat_map(|&i| others.iter().map(move |&j| (i, j)))
+        .min_by(|a, b| {
+            let d =
+                |(i, j): (usize, usize)| common::norm(sub(assembly.nodes[i], assembly.nodes[j]));
+            d(*a).total_cmp(&d(*b))
+        })
+        .expect("nodes");
+    let towards = sub(assembly.nodes[target], assembly.nodes[rattler]);
+    let direction = scale(towards, 1.0 / common::norm(towards));
+    // A steady slide across the neighbour, perpendicular to the push: six margins in 200
+    // steps, farther than the lists of a full build reach (the skin plus the depth limit),
+    // so the pairs around the vertex must be found anew as it goes.
+    let side = cross(direction, common::random_unit(&mut rng(11)));
+    let tangent = scale(side, 1.0 / common::norm(side));
+    let bodies = oscillating(&assembly, 5, 0.12 * margin, 0.12 * margin);
+    let positions = |step: usize| {
+        let mut x = bodies(step);
+        let poke = scale(
+            direction,
+            0.5 * margin * (0.23 * step as f64).sin().max(0.0),
+        );
+        let shift = add(poke, scale(tangent, 0.03 * margin * step as f64));
+        x[rattler] = add(x[rattler], shift);
+        x
+    };
+    let n = assembly.n_nodes();
+    let v = vec![[0.0; 3]; n];
+    let (mut node_only, mut contacts, mut sheet_pairs) = (0, 0, 0);
+    for step in 0..200 {
+        let x = positions(step);
+        let mut fa = vec![[0.0; 3]; n];
+        let mut fb = vec![[0.0; 3]; n];
+        let t = step as f64 * 1e-7;
+        let refreshes = refreshing.refresh_count();
+        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
+        rebuilding.request_rebuild();
+        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(
+            a.stored_energy.to_bits(),
+            b.stored_energy.to_bits(),
+            "step {step}"
+        );
+        node_only += usize::from(refreshing.refresh_count() > refreshes && a.refreshed_bodies == 0);
+        contacts = contacts.max(a.contacts);
+        // The lists hold every pair that can be in contact now: a node behind a solid face
+        // within the depth limit with its foot inside, or within the depth limit of a
+        // sheet's face.
+        let listed: BTreeSet<_> = refreshing.candidate_pairs().into_iter().collect();
+        let mut needed = contact_capable(&assembly, &x, depth_limit);
+        for (t, tri) in assembly.triangles.iter().enumerate() {
+            if assembly.triangle_body[t] != sheet {
+                continue;
+            }
+            for &node in &others {
+                if distance_to_triangle(x[node], tri.map(|i| x[i])) <= depth_limit {
+                    needed.insert((node, t));
+                }
+            }
+        }
+        let missing: Vec<_> = needed.difference(&listed).collect();
+        assert!(
+            missing.is_empty(),
+            "step {step}: pairs missing from the lists: {missing:?}"
+        );
+        sheet_pairs += needed
+            .iter()
+            .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
+            .count();
+    }
+    eprintln!(
+        "{node_only} refreshes of the sheet's node alone, {} in all, {} full builds, up to {contacts} contacts, {sheet_pairs} needed sheet pairs over the steps",
+        refreshing.refresh_count(),
+        refreshing.rebuild_count()
+    );
+    assert!(
+        node_only >= 5,
+        "{node_only} refreshes of the sheet's node alone"
+    );
+    assert!(contacts >= 5, "{contacts} contacts");
+    assert!(
+        refreshing.rebuild_count() < 20,
+        "{} full builds",
+        refreshing.rebuild_count()
+    );
+}
+
+#[test]
+fn a_sheet_coming_back_to_its_neighbours_has_its_faces_renewed() {
+    // The outermost body of the cluster above, declared a sheet, starts six margins out
+    // (beyond the lists' reach of the skin plus the depth limit, four margins) and comes
+    // back to its place in 100 steps. Every sheet node drifts alike, so each refresh
+    // renews them all one by one, and the sheet's faces with them: the neighbours' nodes
+    // meet those faces only as the sheet comes near, so without renewed faces their pairs
+    // would be missing. The lists must hold every pair that can be in contact, and the
+    // forces must equal full builds' bit for bit.
+    let margin = 2e-4;
+    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
+    let centre = |b: usize| {
+        let nodes = &assembly.nodes[assembly.bodies[b].nodes.clone()];
+        scale(
+            nodes.iter().fold([0.0; 3], |c, &x| add(c, x)),
+            1.0 / nodes.len() as f64,
+        )
+    };
+    let n_bodies = assembly.n_bodies();
+    let middle = scale(
+        (0..n_bodies).fold([0.0; 3], |c, b| add(c, centre(b))),
+        1.0 / n_bodies as f64,
+    );
+    let outermost = (0..n_bodies)
+        .max_by(|&a, &b| {
+            let d = |b: usize| common::norm(sub(centre(b), middle));
+            d(a).total_cmp(&d(b))
+        })
+        .expect("bodies");
+    let sheet = outermost as u32;
+    let out = sub(centre(outermost), middle);
+    let out = scale(out, 1.0 / common::norm(out));
+    let depth_limit = 3.0 * margin;
+    let mut refreshing = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    let mut rebuilding = model_for(
+        &assembly,
+        ContactParams::default(),
+        vec![],
+        1e-4,
+        Some(margin),
+    );
+    for m in [&mut refreshing, &mut rebuilding] {
+        m.set_depth_limit(depth_limit).unwrap();
+        m.set_sheet_bodies(&[sheet], depth_limit).unwrap();
+    }
+    // The sheet holds an eighth of the surface nodes: let one refresh renew them all.
+    refreshing
+        .set_refresh_policy(RefreshPolicy {
+            max_fraction: 0.5,
+            max_refreshed_fraction: 1.0,
+            ..RefreshPolicy::default()
+        })
+        .unwrap();
+    let own = assembly.bodies[outermost].nodes.clone();
+    let others: Vec<usize> = (0..n_bodies)
+        .filter(|&b| b != outermost)
+        .flat_map(|b| assembly.surface_nodes[assembly.bodies[b].surface_nodes.clone()].to_vec())
+        .collect();
+    let n = assembly.n_nodes();
+    let v = vec![[0.0; 3]; n];
+    let (mut node_only, mut sheet_pairs) = (0, 0);
+    for step in 0..=100 {
+        let shift = scale(out, 6.0 * margin * (1.0 - step as f64 / 100.0));
+        let mut x = assembly.nodes.clone();
+        for i in own.clone() {
+            x[i] = add(x[i], shift);
+        }
+        let mut fa = vec![[0.0; 3]; n];
+        let mut fb = vec![[0.0; 3]; n];
+        let t = step as f64 * 1e-7;
+        let refreshes = refreshing.refresh_count();
+        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
+        rebuilding.request_rebuild();
+        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        node_only += usize::from(refreshing.refresh_count() > refreshes && a.refreshed_bodies == 0);
+        let listed: BTreeSet<_> = refreshing.candidate_pairs().into_iter().collect();
+        let mut needed = contact_capable(&assembly, &x, depth_limit);
+        for (t, tri) in assembly.triangles.iter().enumerate() {
+            if assembly.triangle_body[t] == sheet {
+                for &node in &others {
+                    if distance_to_triangle(x[node], tri.map(|i| x[i])) <= depth_limit {
+                        needed.insert((node, t));
+                    }
+                }
+            }
+        }
+        let missing: Vec<_> = needed.difference(&listed).collect();
+        assert!(
+            missing.is_empty(),
+            "step {step}: pairs missing from the lists: {missing:?}"
+        );
+        sheet_pairs += needed
+            .iter()
+            .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
+            .count();
+    }
+    eprintln!(
+        "{node_only} refreshes of the sheet's nodes alone, {} full builds, {sheet_pairs} needed sheet pairs over the steps",
+        refreshing.rebuild_count()
+    );
+    assert!(
+        node_only >= 5,
+        "{node_only} refreshes of the sheet's nodes alone"
+    );
+    assert!(sheet_pairs >= 50, "{sheet_pairs} needed sheet pairs");
+    // The first evaluation's build, and one more once the refreshes have renewed as many
+    // nodes as the surface has (the policy's limit).
+    assert!(
+        refreshing.rebuild_count() <= 2,
+        "{} full builds",
+        refreshing.rebuild_count()
+    );
+}
+
+#[test]
 fn candidate_lists_are_deterministic_and_ordered() {
     let assembly = scene(99, 6, 1, 0.01, 1e-4..3e-4);
     let build = || {

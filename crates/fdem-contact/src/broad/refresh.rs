@@ -20,6 +20,12 @@
 //! extra half skin adds ([`BroadPhase::refresh`]). When either end is refreshed again,
 //! the pair is found anew.
 //!
+//! A sheet (a membrane of thousands of nodes, [`BroadPhase::refresh`]'s `single` bodies)
+//! is renewed node by node instead: its drifted nodes get new pairs against every face, and
+//! its faces with a drifted corner against every node. Nothing in the argument above needs
+//! whole bodies: a kept pair has a node and face corners that each stayed within half a
+//! skin of their own references, and a renewed node or face has its pairs found anew.
+//!
 //! Under a mean motion (`crate::mean_motion`) "drifted" means from where the mean motion
 //! has taken a node's reference, the references are kept in the full build's
 //! configuration, and the allowance is half a skin less the mean motion's distortion of
@@ -185,19 +191,31 @@ impl LocalGrid {
     }
 }
 
-/// Per body, the box of its surface nodes at `positions` (in parallel over the bodies);
-/// it holds every face of the body, whose corners are surface nodes of the body
-/// (`ContactSurface::validate`). A body without surface nodes gets an empty box (lower
-/// corner above the upper).
+/// Per body, a box that holds its surface nodes at `positions` (in parallel over the
+/// bodies); it holds every face of the body, whose corners are surface nodes of the body
+/// (`ContactSurface::validate`). A framed body whose nodes are a run of its faces' corners
+/// takes the box of the ball its pose gives it (`RigidFrames::ball`), without reading its
+/// nodes: the boxes only screen bodies. A body without surface nodes gets an empty box
+/// (lower corner above the upper).
 fn body_boxes(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
     bodies: &BodyIndex,
+    frames: Option<&RigidFrames>,
 ) -> Vec<[f64; 6]> {
     let (inf, neg) = (f64::INFINITY, f64::NEG_INFINITY);
+    let ball = |body: u32| {
+        let f = frames?;
+        let slot = f.slot_of(body)?;
+        f.node_runs().get(slot)?.as_ref()?;
+        Some(f.ball(slot))
+    };
     (0..bodies.bodies())
         .into_par_iter()
         .map(|body| {
+            if let Some((c, r)) = ball(body as u32) {
+                return [c[0] - r, c[1] - r, c[2] - r, c[0] + r, c[1] + r, c[2] + r];
+            }
             let mut bx = [inf, inf, inf, neg, neg, neg];
             for &k in bodies.nodes(body) {
                 let x = positions[surface.surface_nodes[k as usize]];
@@ -258,28 +276,59 @@ impl RefreshReach {
     }
 }
 
+/// What a refresh renews: every pair of the dirty bodies, and the pairs of the single
+/// drifted nodes (and of the faces they are corners of) of the bodies renewed node by node.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Dirt {
+    /// Per body id, whether every pair of the body is renewed.
+    pub(crate) bodies: Vec<bool>,
+    /// The drifted surface nodes of the bodies renewed node by node, increasing.
+    pub(crate) nodes: Vec<u32>,
+}
+
+impl Dirt {
+    /// How many bodies are renewed whole.
+    pub(crate) fn whole_bodies(&self) -> usize {
+        self.bodies.iter().filter(|&&d| d).count()
+    }
+}
+
 impl BroadPhase {
-    /// Per body, whether one of its surface nodes lies farther than `half` from where its
-    /// reference position is expected (the reference itself without mean motion); and how
-    /// many surface nodes those bodies have. The nodes of bodies marked in `clean` (per
-    /// body id: known to be within `half`) are not read.
-    pub(crate) fn drifted_bodies(
+    /// The surface nodes a refresh of `dirt` renews: those of its dirty bodies and its
+    /// single nodes.
+    pub(crate) fn renewed_nodes(&self, dirt: &Dirt) -> usize {
+        let whole: usize = (dirt.bodies.iter().enumerate())
+            .filter(|&(_, &d)| d)
+            .map(|(b, _)| self.bodies.nodes(b).len())
+            .sum();
+        whole + dirt.nodes.len()
+    }
+
+    /// What a refresh must renew ([`Dirt`]): per body, whether one of its surface nodes lies
+    /// farther than `half` from where its reference position is expected (the reference
+    /// itself without mean motion), and for the bodies marked `single` (renewed node by
+    /// node) those nodes themselves. The nodes of bodies marked in `clean` (per body id:
+    /// known to be within `half`) are not read.
+    pub(crate) fn drifted(
         &self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
         (half, clean): (f64, &[bool]),
         expected: Option<&Expected>,
-    ) -> (Vec<bool>, usize) {
+        single: impl Fn(u32) -> bool + Sync,
+    ) -> Dirt {
         let n_bodies = self.bodies.bodies();
-        // The drifted nodes' bodies, found in parallel over fixed chunks of nodes.
-        let drifted: Vec<Vec<u32>> = (0..surface.surface_nodes.len().div_ceil(CHUNK))
+        // The drifted nodes' bodies (and single nodes), found in parallel over fixed chunks
+        // of nodes.
+        let drifted: Vec<(Vec<u32>, Vec<u32>)> = (0..surface.surface_nodes.len().div_ceil(CHUNK))
             .into_par_iter()
             .map(|chunk| {
                 let nodes = chunk * CHUNK..((chunk + 1) * CHUNK).min(surface.surface_nodes.len());
-                let mut bodies: Vec<u32> = Vec::new();
+                let (mut bodies, mut singles): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
                 for k in nodes {
                     let body = surface.node_body[k];
-                    if bodies.last() != Some(&body)
+                    let one_by_one = single(body);
+                    if (one_by_one || bodies.last() != Some(&body))
                         && !clean.get(body as usize).is_some_and(|&c| c)
                         && drift2(
                             expected,
@@ -287,21 +336,27 @@ impl BroadPhase {
                             self.reference[k],
                         ) > half * half
                     {
-                        bodies.push(body);
+                        if one_by_one {
+                            singles.push(k as u32);
+                        } else {
+                            bodies.push(body);
+                        }
                     }
                 }
-                bodies
+                (bodies, singles)
             })
             .collect();
-        let mut dirty = vec![false; n_bodies];
-        for &body in drifted.iter().flatten() {
-            dirty[body as usize] = true;
+        let mut dirt = Dirt {
+            bodies: vec![false; n_bodies],
+            nodes: Vec::new(),
+        };
+        for (bodies, singles) in &drifted {
+            for &body in bodies {
+                dirt.bodies[body as usize] = true;
+            }
+            dirt.nodes.extend_from_slice(singles);
         }
-        let nodes = (0..n_bodies)
-            .filter(|&b| dirty[b])
-            .map(|b| self.bodies.nodes(b).len())
-            .sum();
-        (dirty, nodes)
+        dirt
     }
 
     /// The enlargement and the front reach a refresh finds its pairs with (m).
@@ -316,23 +371,25 @@ impl BroadPhase {
         self.refreshed_nodes
     }
 
-    /// Replaces every candidate pair with a node or a face on a body marked in `dirty` by
-    /// the pairs at the current positions (the refresh reaches, [`RefreshReach`]) and
-    /// resets those bodies' reference positions (to the full build's configuration under
-    /// the mean motion's map `expected`, so that they are expected where they are now);
-    /// every other pair is kept. `dirty` has an entry per body; a full build must have
-    /// come first. With `frames` (in use at these positions), the framed dirty bodies'
-    /// pairs are found body by body (`super::framed`), the others' on local grids.
-    /// Returns `false`, changing nothing, when a box is too large to bin
-    /// ([`MAX_CELLS_PER_BOX`]).
+    /// Replaces every candidate pair with a node or a face on a body marked in
+    /// `dirt.bodies`, or with one of `dirt.nodes` or a face it is a corner of, by the pairs
+    /// at the current positions (the refresh reaches, [`RefreshReach`]), and resets those
+    /// nodes' reference positions (to the full build's configuration under the mean
+    /// motion's map `expected`, so that they are expected where they are now); every
+    /// other pair is kept. A full build must have come first. With `frames` (in use at these
+    /// positions), the framed dirty bodies' pairs are found body by body
+    /// (`super::framed`), the others' on local grids. Returns `false`, changing nothing,
+    /// when a box is too large to bin ([`MAX_CELLS_PER_BOX`]).
     pub(crate) fn refresh(
         &mut self,
         (positions, surface): (&[[f64; 3]], &ContactSurface),
-        (dirty, expected): (&[bool], Option<&Expected>),
+        (dirt, expected): (&Dirt, Option<&Expected>),
         (skin, frames): (f64, Option<&RigidFrames>),
         two_sided: impl Fn(u32) -> bool + Sync,
     ) -> bool {
+        let dirty = dirt.bodies.as_slice();
         let reach = RefreshReach::of(self, skin);
+        let single_faces = self.mark_singles(surface, &dirt.nodes);
         let on_grids: Vec<bool> = match frames {
             Some(f) => (dirty.iter().enumerate())
                 .map(|(b, &d)| d && !f.has(b as u32))
@@ -340,9 +397,20 @@ impl BroadPhase {
             None => dirty.to_vec(),
         };
         let mut found = Vec::new();
-        if on_grids.iter().any(|&d| d) {
-            let Some(pairs) = self.grid_pairs((positions, surface), &on_grids, reach, &two_sided)
-            else {
+        if on_grids.iter().any(|&d| d) || !dirt.nodes.is_empty() {
+            let items = (
+                merged(self.bodies.nodes_of(&on_grids), &dirt.nodes),
+                merged(self.bodies.triangles_of(&on_grids), &single_faces),
+            );
+            let pairs = self.grid_pairs(
+                (positions, surface),
+                items,
+                (dirty, frames),
+                reach,
+                &two_sided,
+            );
+            let Some(pairs) = pairs else {
+                self.unmark_singles(&dirt.nodes, &single_faces);
                 return false;
             };
             found = pairs;
@@ -369,28 +437,74 @@ impl BroadPhase {
             ));
         }
         self.merge_refreshed(surface, dirty, found);
-        let dirty_nodes = self.bodies.nodes_of(dirty);
-        for &k in &dirty_nodes {
+        self.unmark_singles(&dirt.nodes, &single_faces);
+        let renewed = merged(self.bodies.nodes_of(dirty), &dirt.nodes);
+        for &k in &renewed {
             let x = positions[surface.surface_nodes[k as usize]];
             self.reference[k as usize] = expected.map_or(x, |e| e.reference(x));
         }
         self.pairs = self.chunk_cands.iter().map(Vec::len).sum();
-        self.refreshed_nodes += dirty_nodes.len();
+        self.refreshed_nodes += renewed.len();
         self.refreshes += 1;
         true
     }
 
-    /// The new pairs of the bodies marked in `dirty`, in both directions, found on local
-    /// grids of their nodes and faces; `None` when a box is too large to bin.
+    /// Marks `singles` (surface nodes renewed one by one) in `single_nodes`, and every face
+    /// of their bodies with one of them as a corner in `single_faces`; returns those faces,
+    /// increasing.
+    fn mark_singles(&mut self, surface: &ContactSurface, singles: &[u32]) -> Vec<u32> {
+        if singles.is_empty() {
+            return Vec::new();
+        }
+        self.single_nodes.resize(surface.surface_nodes.len(), false);
+        self.single_faces.resize(surface.triangles.len(), false);
+        let mut corners: Vec<usize> = Vec::with_capacity(singles.len());
+        let mut bodies: Vec<u32> = Vec::new();
+        for &k in singles {
+            self.single_nodes[k as usize] = true;
+            corners.push(surface.surface_nodes[k as usize]);
+            let body = surface.node_body[k as usize];
+            if !bodies.contains(&body) {
+                bodies.push(body);
+            }
+        }
+        corners.sort_unstable();
+        let mut faces: Vec<u32> = (bodies.iter())
+            .flat_map(|&b| self.bodies.triangles(b as usize).iter().copied())
+            .filter(|&t| {
+                (surface.triangles[t as usize].iter()).any(|i| corners.binary_search(i).is_ok())
+            })
+            .collect();
+        faces.sort_unstable();
+        for &t in &faces {
+            self.single_faces[t as usize] = true;
+        }
+        faces
+    }
+
+    /// Clears the marks [`BroadPhase::mark_singles`] set.
+    fn unmark_singles(&mut self, singles: &[u32], faces: &[u32]) {
+        for &k in singles {
+            self.single_nodes[k as usize] = false;
+        }
+        for &t in faces {
+            self.single_faces[t as usize] = false;
+        }
+    }
+
+    /// The new pairs of the renewed surface nodes and faces `items` (increasing), in both
+    /// directions, found on local grids; `None` when a box is too large to bin. A node of
+    /// a body marked in `dirty` or a single node is renewed: its pairs come from its own
+    /// turn, so the faces' turn passes over it.
     fn grid_pairs(
         &self,
         (positions, surface): (&[[f64; 3]], &ContactSurface),
-        dirty: &[bool],
+        (dirty_nodes, dirty_faces): (Vec<u32>, Vec<u32>),
+        (dirty, frames): (&[bool], Option<&RigidFrames>),
         reach: RefreshReach,
         two_sided: &(impl Fn(u32) -> bool + Sync),
     ) -> Option<Vec<Vec<(u32, Candidate)>>> {
         let e = reach.enlargement;
-        let dirty_nodes = self.bodies.nodes_of(dirty);
         // Each dirty node binned by the box it reaches, so that a triangle looks only at
         // the cells of its own box; each dirty face by its enlarged box.
         let node_boxes: Vec<(u32, [f64; 6])> = dirty_nodes
@@ -403,7 +517,7 @@ impl BroadPhase {
                 )
             })
             .collect();
-        let face_boxes: Vec<(u32, [f64; 6])> = (self.bodies.triangles_of(dirty).into_iter())
+        let face_boxes: Vec<(u32, [f64; 6])> = (dirty_faces.into_iter())
             .map(|t| {
                 let face = surface.triangles[t as usize].map(|i| positions[i]);
                 (t, grown_box(face, e))
@@ -418,8 +532,17 @@ impl BroadPhase {
         // Only the bodies whose box overlaps an occupied cell of a grid can pair with its
         // items: the scans below skip every other body's faces or nodes, which the grid
         // would give nothing (the same pairs, in the same order).
-        let boxes = body_boxes(positions, surface, &self.bodies);
-        let near_nodes = node_grid.near_bodies(&boxes);
+        // A body never pairs with itself: when every binned item is one body's (a
+        // sheet's single nodes and faces), that body's items are skipped as well.
+        let boxes = body_boxes(positions, surface, &self.bodies, frames);
+        let mut near_nodes = node_grid.near_bodies(&boxes);
+        if let Some(b) = sole_owner(
+            node_boxes
+                .iter()
+                .map(|&(k, _)| surface.node_body[k as usize]),
+        ) {
+            near_nodes[b as usize] = false;
+        }
         let mut found = faces_of_dirty_nodes(
             positions,
             surface,
@@ -427,17 +550,44 @@ impl BroadPhase {
             reach,
             two_sided,
         );
-        let near_faces = face_grid.near_bodies(&boxes);
+        let mut near_faces = face_grid.near_bodies(&boxes);
+        let owners = face_boxes
+            .iter()
+            .map(|&(t, _)| surface.triangle_body[t as usize]);
+        if let Some(b) = sole_owner(owners) {
+            near_faces[b as usize] = false;
+        }
+        let renewed = |k: usize| {
+            dirty[surface.node_body[k] as usize] || self.single_nodes.get(k).is_some_and(|&s| s)
+        };
         found.extend(nodes_of_dirty_faces(
             positions,
             surface,
-            dirty,
+            &renewed,
             (&face_grid, &self.bodies.nodes_of(&near_faces)),
             reach,
             two_sided,
         ));
         Some(found)
     }
+}
+
+/// The body that owns every item of `owners`, when there is exactly one.
+fn sole_owner(mut owners: impl Iterator<Item = u32>) -> Option<u32> {
+    let first = owners.next()?;
+    owners.all(|b| b == first).then_some(first)
+}
+
+/// The union of two increasing lists, increasing, without repeats.
+fn merged(a: Vec<u32>, b: &[u32]) -> Vec<u32> {
+    if b.is_empty() {
+        return a;
+    }
+    let mut out = a;
+    out.extend_from_slice(b);
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 /// The pairs of the dirty nodes (binned in `grid`) with the faces `near` them (the
@@ -488,12 +638,12 @@ fn faces_of_dirty_nodes(
 }
 
 /// The pairs of the nodes `near` the dirty faces (the nodes of the bodies whose box
-/// reaches the grid's faces, increasing; those of dirty bodies are skipped) with the dirty
+/// reaches the grid's faces, increasing; the `renewed` ones are skipped) with the dirty
 /// faces (binned in `grid`), one list per fixed chunk of those nodes.
 fn nodes_of_dirty_faces(
     positions: &[[f64; 3]],
     surface: &ContactSurface,
-    dirty: &[bool],
+    renewed: &(impl Fn(usize) -> bool + Sync),
     (grid, near): (&LocalGrid, &[u32]),
     reach: RefreshReach,
     two_sided: &(impl Fn(u32) -> bool + Sync),
@@ -509,7 +659,7 @@ fn nodes_of_dirty_faces(
             for &k in nodes {
                 let k = k as usize;
                 let body = surface.node_body[k];
-                if dirty[body as usize] {
+                if renewed(k) {
                     continue;
                 }
                 let x = positions[surface.surface_nodes[k]];
@@ -538,9 +688,10 @@ fn nodes_of_dirty_faces(
 }
 
 impl BroadPhase {
-    /// Rewrites the lists of every chunk of nodes that a refresh touches: a dirty node's
-    /// list becomes its new pairs; a clean node's list keeps its pairs with clean faces
-    /// and gains its new pairs with dirty faces; each sorted by (owner body, triangle).
+    /// Rewrites the lists of every chunk of nodes that a refresh touches: a renewed node's
+    /// list (of a body marked in `dirty`, or a single node) becomes its new pairs; another
+    /// node's list keeps its pairs with faces not renewed (of clean bodies, not single)
+    /// and gains its new pairs with renewed faces; each sorted by (owner body, triangle).
     fn merge_refreshed(
         &mut self,
         surface: &ContactSurface,
@@ -559,6 +710,12 @@ impl BroadPhase {
             new_by_chunk[k as usize / CHUNK].push((k, c));
         }
         let node_body = &surface.node_body;
+        let (single_nodes, single_faces) = (&self.single_nodes, &self.single_faces);
+        let renewed_node =
+            |k: usize| dirty[node_body[k] as usize] || single_nodes.get(k).is_some_and(|&s| s);
+        let renewed_face = |c: &Candidate| {
+            dirty[c.body as usize] || single_faces.get(c.triangle as usize).is_some_and(|&s| s)
+        };
         self.chunk_cands
             .par_iter_mut()
             .zip(self.chunk_starts.par_iter_mut())
@@ -567,8 +724,8 @@ impl BroadPhase {
             .for_each(|(chunk, ((cands, starts), new))| {
                 let nodes = chunk * CHUNK..((chunk + 1) * CHUNK).min(n);
                 let touched = !new.is_empty()
-                    || nodes.clone().any(|k| dirty[node_body[k] as usize])
-                    || cands.iter().any(|c| dirty[c.body as usize]);
+                    || nodes.clone().any(renewed_node)
+                    || cands.iter().any(renewed_face);
                 if !touched {
                     return;
                 }
@@ -580,11 +737,11 @@ impl BroadPhase {
                 let mut next = new.iter().peekable();
                 for (i, k) in nodes.enumerate() {
                     let begin = out.len();
-                    if !dirty[node_body[k] as usize] {
+                    if !renewed_node(k) {
                         out.extend(
                             cands[starts[i]..starts[i + 1]]
                                 .iter()
-                                .filter(|c| !dirty[c.body as usize]),
+                                .filter(|c| !renewed_face(c)),
                         );
                     }
                     while let Some(&(_, c)) = next.next_if(|&&(node, _)| node as usize == k) {
