@@ -505,6 +505,116 @@ fn oscillating(
     }
 }
 
+/// One evaluation of both models at positions `x` (zero velocities, time step 1e-7 s), the
+/// second rebuilt from scratch; their forces, contact counts and stored energies must agree
+/// bit for bit. Returns the first model's report.
+fn evaluate_against_a_full_build(
+    (refreshing, rebuilding): (&mut ContactModel, &mut ContactModel),
+    x: &[[f64; 3]],
+    step: usize,
+) -> fdem_contact::ContactReport {
+    let n = x.len();
+    let v = vec![[0.0; 3]; n];
+    let mut fa = vec![[0.0; 3]; n];
+    let mut fb = vec![[0.0; 3]; n];
+    let t = step as f64 * 1e-7;
+    let a = refreshing.add_forces(x, &v, t, 1e-7, &mut fa).unwrap();
+    rebuilding.request_rebuild();
+    let b = rebuilding.add_forces(x, &v, t, 1e-7, &mut fb).unwrap();
+    assert_eq!(fa, fb, "step {step}");
+    assert_eq!(a.contacts, b.contacts, "step {step}");
+    assert_eq!(
+        a.stored_energy.to_bits(),
+        b.stored_energy.to_bits(),
+        "step {step}"
+    );
+    a
+}
+
+/// Asserts that `model`'s lists hold every pair that can be in contact at `x`: a node
+/// behind a solid face within `depth_limit` with its foot inside, or one of the nodes
+/// `others` within `depth_limit` of a face of the sheet `sheet`. Returns how many of those
+/// pairs have a sheet face.
+fn assert_lists_hold_the_contact_capable_pairs(
+    (model, assembly): (&ContactModel, &MeshAssembly),
+    x: &[[f64; 3]],
+    (sheet, others): (u32, &[usize]),
+    depth_limit: f64,
+    step: usize,
+) -> usize {
+    let listed: BTreeSet<_> = model.candidate_pairs().into_iter().collect();
+    let mut needed = contact_capable(assembly, x, depth_limit);
+    for (t, tri) in assembly.triangles.iter().enumerate() {
+        if assembly.triangle_body[t] != sheet {
+            continue;
+        }
+        for &node in others {
+            if distance_to_triangle(x[node], tri.map(|i| x[i])) <= depth_limit {
+                needed.insert((node, t));
+            }
+        }
+    }
+    let missing: Vec<_> = needed.difference(&listed).collect();
+    assert!(
+        missing.is_empty(),
+        "step {step}: pairs missing from the lists: {missing:?}"
+    );
+    needed
+        .iter()
+        .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
+        .count()
+}
+
+/// One step of the sheet tests: both models evaluated at `x` against each other
+/// ([`evaluate_against_a_full_build`]) and the refreshing model's lists checked
+/// ([`assert_lists_hold_the_contact_capable_pairs`]). Returns the report, whether a
+/// refresh renewed no whole body (the sheet's nodes alone), and the needed sheet pairs.
+fn sheet_step(
+    (refreshing, rebuilding): (&mut ContactModel, &mut ContactModel),
+    (assembly, x): (&MeshAssembly, &[[f64; 3]]),
+    (sheet, others, depth_limit): (u32, &[usize], f64),
+    step: usize,
+) -> (fdem_contact::ContactReport, bool, usize) {
+    let refreshes = refreshing.refresh_count();
+    let a = evaluate_against_a_full_build((refreshing, rebuilding), x, step);
+    let alone = refreshing.refresh_count() > refreshes && a.refreshed_bodies == 0;
+    let models = (&*refreshing, assembly);
+    let needed =
+        assert_lists_hold_the_contact_capable_pairs(models, x, (sheet, others), depth_limit, step);
+    (a, alone, needed)
+}
+
+/// The surface nodes of every body but `body`.
+fn surface_nodes_but(assembly: &MeshAssembly, body: usize) -> Vec<usize> {
+    (0..assembly.n_bodies())
+        .filter(|&b| b != body)
+        .flat_map(|b| assembly.surface_nodes[assembly.bodies[b].surface_nodes.clone()].to_vec())
+        .collect()
+}
+
+/// The cluster tests' common ending: contacts formed, and the refreshing model rebuilt
+/// everything only now and then.
+fn assert_contacts_and_few_builds(refreshing: &ContactModel, contacts: usize) {
+    assert!(contacts >= 5, "{contacts} contacts");
+    assert!(
+        refreshing.rebuild_count() < 20,
+        "{} full builds",
+        refreshing.rebuild_count()
+    );
+}
+
+/// The refresh tests' cluster: eight spheres of 1 cm with gaps up to 0.1 `margin`, and a
+/// frictional contact law.
+fn frictional_cluster(margin: f64) -> (MeshAssembly, ContactParams) {
+    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
+    assert!(assembly.n_bodies() >= 5, "{} bodies", assembly.n_bodies());
+    let params = ContactParams {
+        friction: 0.3,
+        ..ContactParams::default()
+    };
+    (assembly, params)
+}
+
 #[test]
 fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
     // Eight spheres in a cluster, surfaces up to 0.1 margin apart, oscillating: a
@@ -515,12 +625,7 @@ fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
     // other rebuilds everything at every evaluation; forces and contacts must agree bit
     // for bit, and the first must have refreshed.
     let margin = 2e-4;
-    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
-    assert!(assembly.n_bodies() >= 5, "{} bodies", assembly.n_bodies());
-    let params = ContactParams {
-        friction: 0.3,
-        ..ContactParams::default()
-    };
+    let (assembly, params) = frictional_cluster(margin);
     let mut refreshing = model_for(&assembly, params, vec![], 1e-4, Some(margin));
     // The rattler holds an eighth of the surface nodes, more than the default policy
     // refreshes alone.
@@ -535,24 +640,11 @@ fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
         m.set_depth_limit(3.0 * margin).unwrap();
     }
     let positions = oscillating(&assembly, 5, margin, 0.12 * margin);
-    let n = assembly.n_nodes();
-    let v = vec![[0.0; 3]; n];
     let (mut refreshes, mut contacts) = (0, 0);
     for step in 0..200 {
         let x = positions(step);
-        let mut fa = vec![[0.0; 3]; n];
-        let mut fb = vec![[0.0; 3]; n];
-        let t = step as f64 * 1e-7;
-        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
-        rebuilding.request_rebuild();
-        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
-        assert_eq!(fa, fb, "step {step}");
-        assert_eq!(a.contacts, b.contacts, "step {step}");
-        assert_eq!(
-            a.stored_energy.to_bits(),
-            b.stored_energy.to_bits(),
-            "step {step}"
-        );
+        let models = (&mut refreshing, &mut rebuilding);
+        let a = evaluate_against_a_full_build(models, &x, step);
         refreshes += usize::from(a.refreshed_bodies > 0);
         contacts = contacts.max(a.contacts);
     }
@@ -561,12 +653,7 @@ fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
         refreshing.rebuild_count()
     );
     assert!(refreshes >= 5, "{refreshes} refreshes");
-    assert!(contacts >= 5, "{contacts} contacts");
-    assert!(
-        refreshing.rebuild_count() < 20,
-        "{} full builds",
-        refreshing.rebuild_count()
-    );
+    assert_contacts_and_few_builds(&refreshing, contacts);
 }
 
 #[test]
@@ -580,12 +667,7 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
     // contacts must agree bit for bit with full builds at every evaluation, and refreshes
     // that renewed no whole body (the sheet's node alone) must have happened.
     let margin = 2e-4;
-    let assembly = scene(7, 8, 1, 0.01, 1e-6..0.1 * margin);
-    assert!(assembly.n_bodies() >= 5, "{} bodies", assembly.n_bodies());
-    let params = ContactParams {
-        friction: 0.3,
-        ..ContactParams::default()
-    };
+    let (assembly, params) = frictional_cluster(margin);
     let sheet = 1u32;
     let mut refreshing = model_for(&assembly, params, vec![], 1e-4, Some(margin));
     let mut rebuilding = model_for(&assembly, params, vec![], 1e-4, Some(margin));
@@ -598,10 +680,7 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
     // pokes into the neighbour (its own pairs) and the faces around it sweep over the
     // neighbour's nodes (their pairs).
     let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
-    let others: Vec<usize> = (0..assembly.n_bodies())
-        .filter(|&b| b != sheet as usize)
-        .flat_map(|b| assembly.surface_nodes[assembly.bodies[b].surface_nodes.clone()].to_vec())
-        .collect();
+    let others = surface_nodes_but(&assembly, sheet as usize);
     let (rattler, target) = own
         .iter()
         .flat_map(|&i| others.iter().map(move |&j| (i, j)))
@@ -629,51 +708,18 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
         x[rattler] = add(x[rattler], shift);
         x
     };
-    let n = assembly.n_nodes();
-    let v = vec![[0.0; 3]; n];
     let (mut node_only, mut contacts, mut sheet_pairs) = (0, 0, 0);
     for step in 0..200 {
         let x = positions(step);
-        let mut fa = vec![[0.0; 3]; n];
-        let mut fb = vec![[0.0; 3]; n];
-        let t = step as f64 * 1e-7;
-        let refreshes = refreshing.refresh_count();
-        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
-        rebuilding.request_rebuild();
-        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
-        assert_eq!(fa, fb, "step {step}");
-        assert_eq!(a.contacts, b.contacts, "step {step}");
-        assert_eq!(
-            a.stored_energy.to_bits(),
-            b.stored_energy.to_bits(),
-            "step {step}"
+        let (a, alone, needed) = sheet_step(
+            (&mut refreshing, &mut rebuilding),
+            (&assembly, &x),
+            (sheet, &others, depth_limit),
+            step,
         );
-        node_only += usize::from(refreshing.refresh_count() > refreshes && a.refreshed_bodies == 0);
+        node_only += usize::from(alone);
+        sheet_pairs += needed;
         contacts = contacts.max(a.contacts);
-        // The lists hold every pair that can be in contact now: a node behind a solid face
-        // within the depth limit with its foot inside, or within the depth limit of a
-        // sheet's face.
-        let listed: BTreeSet<_> = refreshing.candidate_pairs().into_iter().collect();
-        let mut needed = contact_capable(&assembly, &x, depth_limit);
-        for (t, tri) in assembly.triangles.iter().enumerate() {
-            if assembly.triangle_body[t] != sheet {
-                continue;
-            }
-            for &node in &others {
-                if distance_to_triangle(x[node], tri.map(|i| x[i])) <= depth_limit {
-                    needed.insert((node, t));
-                }
-            }
-        }
-        let missing: Vec<_> = needed.difference(&listed).collect();
-        assert!(
-            missing.is_empty(),
-            "step {step}: pairs missing from the lists: {missing:?}"
-        );
-        sheet_pairs += needed
-            .iter()
-            .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
-            .count();
     }
     eprintln!(
         "{node_only} refreshes of the sheet's node alone, {} in all, {} full builds, up to {contacts} contacts, {sheet_pairs} needed sheet pairs over the steps",
@@ -684,12 +730,7 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
         node_only >= 5,
         "{node_only} refreshes of the sheet's node alone"
     );
-    assert!(contacts >= 5, "{contacts} contacts");
-    assert!(
-        refreshing.rebuild_count() < 20,
-        "{} full builds",
-        refreshing.rebuild_count()
-    );
+    assert_contacts_and_few_builds(&refreshing, contacts);
 }
 
 #[test]
@@ -752,12 +793,7 @@ fn a_sheet_coming_back_to_its_neighbours_has_its_faces_renewed() {
         })
         .unwrap();
     let own = assembly.bodies[outermost].nodes.clone();
-    let others: Vec<usize> = (0..n_bodies)
-        .filter(|&b| b != outermost)
-        .flat_map(|b| assembly.surface_nodes[assembly.bodies[b].surface_nodes.clone()].to_vec())
-        .collect();
-    let n = assembly.n_nodes();
-    let v = vec![[0.0; 3]; n];
+    let others = surface_nodes_but(&assembly, outermost);
     let (mut node_only, mut sheet_pairs) = (0, 0);
     for step in 0..=100 {
         let shift = scale(out, 6.0 * margin * (1.0 - step as f64 / 100.0));
@@ -765,36 +801,14 @@ fn a_sheet_coming_back_to_its_neighbours_has_its_faces_renewed() {
         for i in own.clone() {
             x[i] = add(x[i], shift);
         }
-        let mut fa = vec![[0.0; 3]; n];
-        let mut fb = vec![[0.0; 3]; n];
-        let t = step as f64 * 1e-7;
-        let refreshes = refreshing.refresh_count();
-        let a = refreshing.add_forces(&x, &v, t, 1e-7, &mut fa).unwrap();
-        rebuilding.request_rebuild();
-        let b = rebuilding.add_forces(&x, &v, t, 1e-7, &mut fb).unwrap();
-        assert_eq!(fa, fb, "step {step}");
-        assert_eq!(a.contacts, b.contacts, "step {step}");
-        node_only += usize::from(refreshing.refresh_count() > refreshes && a.refreshed_bodies == 0);
-        let listed: BTreeSet<_> = refreshing.candidate_pairs().into_iter().collect();
-        let mut needed = contact_capable(&assembly, &x, depth_limit);
-        for (t, tri) in assembly.triangles.iter().enumerate() {
-            if assembly.triangle_body[t] == sheet {
-                for &node in &others {
-                    if distance_to_triangle(x[node], tri.map(|i| x[i])) <= depth_limit {
-                        needed.insert((node, t));
-                    }
-                }
-            }
-        }
-        let missing: Vec<_> = needed.difference(&listed).collect();
-        assert!(
-            missing.is_empty(),
-            "step {step}: pairs missing from the lists: {missing:?}"
+        let (_, alone, needed) = sheet_step(
+            (&mut refreshing, &mut rebuilding),
+            (&assembly, &x),
+            (sheet, &others, depth_limit),
+            step,
         );
-        sheet_pairs += needed
-            .iter()
-            .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
-            .count();
+        node_only += usize::from(alone);
+        sheet_pairs += needed;
     }
     eprintln!(
         "{node_only} refreshes of the sheet's nodes alone, {} full builds, {sheet_pairs} needed sheet pairs over the steps",
