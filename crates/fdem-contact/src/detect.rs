@@ -57,10 +57,9 @@ pub(crate) fn bodies_clear_of_walls(
     clear.clear();
     clear.resize(n_bodies, false);
     for (body, k) in frames.framed_bodies() {
-        let (Some(motion), Some(Some(_))) = (motions.get(k), frames.node_runs().get(k)) else {
+        let (Some(motion), Some((centre, radius))) = (motions.get(k), frames.nodes_ball(k)) else {
             continue;
         };
-        let (centre, radius) = frames.ball(k);
         let clear_of = |(wall, shape): (&Wall, &WallShape)| {
             let Some((distance, _)) = wall_distance(shape, centre) else {
                 return false;

@@ -495,6 +495,14 @@ impl RigidFrames {
         )
     }
 
+    /// [`RigidFrames::ball`] of framed body `k` when its surface nodes are a run of its
+    /// faces' corners ([`RigidFrames::node_runs`]), so that the ball holds all of them;
+    /// `None` otherwise.
+    pub(crate) fn nodes_ball(&self, k: usize) -> Option<([f64; 3], f64)> {
+        self.node_runs.get(k)?.as_ref()?;
+        Some(self.ball(k))
+    }
+
     /// Framed body `k`'s template.
     pub(crate) fn template_of(&self, k: usize) -> u32 {
         self.bodies[k].template

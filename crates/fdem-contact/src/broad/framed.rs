@@ -606,13 +606,12 @@ fn spheres(
     e: f64,
 ) -> Vec<Sphere> {
     let framed: Vec<(u32, usize)> = frames.framed_bodies().collect();
-    let runs = frames.node_runs();
     let mut spheres: Vec<Sphere> = framed
         .par_iter()
         .map(|&(body, slot)| {
-            let (centre, radius) = match runs.get(slot) {
-                Some(Some(_)) => frames.ball(slot),
-                _ => {
+            let (centre, radius) = match frames.nodes_ball(slot) {
+                Some(ball) => ball,
+                None => {
                     let centre = frames.pose(slot).origin;
                     let farthest = (bodies.nodes(body as usize).iter())
                         .map(|&k| norm2(sub(nodes.get(k), centre)))

@@ -204,12 +204,7 @@ fn body_boxes(
     frames: Option<&RigidFrames>,
 ) -> Vec<[f64; 6]> {
     let (inf, neg) = (f64::INFINITY, f64::NEG_INFINITY);
-    let ball = |body: u32| {
-        let f = frames?;
-        let slot = f.slot_of(body)?;
-        f.node_runs().get(slot)?.as_ref()?;
-        Some(f.ball(slot))
-    };
+    let ball = |body: u32| frames.and_then(|f| f.nodes_ball(f.slot_of(body)?));
     (0..bodies.bodies())
         .into_par_iter()
         .map(|body| {
