@@ -179,6 +179,9 @@ pub(crate) struct BroadPhase {
     pub(crate) enlargement: f64,
     /// Reach in front of a face's plane at the last build (m), see [`FRONT_SKINS`].
     pub(crate) front: f64,
+    /// Enlargement of a sheet's faces at the last build (m): the skin, the sheets' listing
+    /// depth and the tolerance band.
+    pub(crate) sheet_enlargement: f64,
     /// The allowances behind the window reach of the last build ([`window`]).
     pub(crate) window: WindowReach,
     /// Each body's surface nodes and triangles ([`bodies`]).
@@ -322,11 +325,50 @@ pub(crate) const FRONT_SKINS: f64 = 2.0;
 /// alone.
 const PLANE_PREFILTER_SLACK: f64 = 1e-6;
 
-/// The candidate test of node `x` against a face of another body: within `reach2`
-/// (squared) of the face, and either behind its plane (strictly; outward normal by the
-/// right-hand rule of its corners) and within `window.1()` of its window of depth
-/// `window.0` ([`window`]; the reach is asked for only here, at most once per pair), or
-/// `two_sided` (the distance alone), or within `front2` (squared) of it.
+/// How far from one face the candidate test lists a node (squared lengths, m^2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum FaceReach {
+    /// A solid body's face: within `reach2` of it, and behind its plane near its window
+    /// ([`window`]) or in front of it within `front2`.
+    Solid { reach2: f64, front2: f64 },
+    /// A sheet's face: within `reach2` of it in any direction (its closest point and the
+    /// pseudo-normal there need the faces in front as well).
+    Sheet { reach2: f64 },
+}
+
+/// The reaches of a set of lists (m): the enlargement of a solid face (skin, depth limit
+/// and tolerance band), the front reach ([`FRONT_SKINS`]) and the enlargement of a
+/// sheet's face (skin, the sheets' listing depth and the band).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Reaches {
+    pub(crate) enlargement: f64,
+    pub(crate) front: f64,
+    pub(crate) sheet: f64,
+}
+
+impl Reaches {
+    /// The candidate test's reach for a face of a sheet (`sheet`) or of a solid body.
+    #[inline(always)]
+    pub(crate) fn of_face(&self, sheet: bool) -> FaceReach {
+        if sheet {
+            FaceReach::Sheet {
+                reach2: self.sheet * self.sheet,
+            }
+        } else {
+            FaceReach::Solid {
+                reach2: self.enlargement * self.enlargement,
+                front2: self.front * self.front,
+            }
+        }
+    }
+}
+
+/// The candidate test of node `x` against a face of another body: within the face's
+/// `reach2` (squared) of the face, and for a solid body's face either behind its plane
+/// (strictly; outward normal by the right-hand rule of its corners) and within `window.1()`
+/// of its window of depth `window.0` ([`window`]; the reach is asked for only here, at
+/// most once per pair), or within `front2` (squared) of it; for a sheet's face the
+/// distance alone.
 ///
 /// The plane distance is a lower bound of the distance to the face, so a pair whose plane
 /// distance exceeds its reach (beyond [`PLANE_PREFILTER_SLACK`]) is skipped before the
@@ -336,11 +378,14 @@ const PLANE_PREFILTER_SLACK: f64 = 1e-6;
 fn is_candidate(
     x: [f64; 3],
     face: [[f64; 3]; 3],
-    (reach2, front2): (f64, f64),
+    reach: FaceReach,
     window: (f64, &mut impl FnMut() -> f64),
-    two_sided: bool,
 ) -> bool {
     use crate::vec3::{cross, dot, norm2, sub};
+    let (reach2, front2, two_sided) = match reach {
+        FaceReach::Solid { reach2, front2 } => (reach2, front2, false),
+        FaceReach::Sheet { reach2 } => (reach2, reach2, true),
+    };
     let [a, b, c] = face;
     let n = cross(sub(b, a), sub(c, a));
     let s = dot(n, sub(x, a));
@@ -395,6 +440,15 @@ impl BroadPhase {
         }
     }
 
+    /// The reaches of the last build's lists.
+    pub(crate) fn reaches(&self) -> Reaches {
+        Reaches {
+            enlargement: self.enlargement,
+            front: self.front,
+            sheet: self.sheet_enlargement,
+        }
+    }
+
     /// The number of bodies of the surface.
     pub(crate) fn n_bodies(&self) -> usize {
         self.bodies.bodies()
@@ -405,9 +459,11 @@ impl BroadPhase {
     ///
     /// A pair (node, face of another body) is a candidate when the node is within
     /// `skin + depth_limit` of the face (plus the tolerance band) and either behind the
-    /// face's plane, or within [`FRONT_SKINS`] skins of the face (plus the band), or the
-    /// face's body is `two_sided` (sheets, whose edges also make contacts and whose edge
-    /// filter looks at faces in front).
+    /// face's plane, or within [`FRONT_SKINS`] skins of the face (plus the band); or, when
+    /// the face's body is `two_sided` (a sheet, whose closest point needs the faces in
+    /// front as well), within `skin + sheet_depth` of the face (plus the band) in any
+    /// direction. `sheet_depth` (at most the depth limit) is the sheets' listing depth,
+    /// `crate::sheet::Sheets::listing_depth`.
     ///
     /// With `frames` (in use at these positions), the pairs with the framed bodies' faces
     /// and nodes are found body by body ([`framed`]), the same pairs as the grid scan's:
@@ -416,7 +472,7 @@ impl BroadPhase {
         &mut self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
-        (skin, depth_limit): (f64, f64),
+        (skin, depth_limit, sheet_depth): (f64, f64, f64),
         frames: Option<&RigidFrames>,
         two_sided: impl Fn(u32) -> bool + Sync,
     ) {
@@ -428,6 +484,7 @@ impl BroadPhase {
         let e = self.enlarged_boxes(positions, surface, reach);
         // The reach in front of a face's plane: see FRONT_SKINS.
         self.front = FRONT_SKINS * skin + (e - reach);
+        self.sheet_enlargement = skin + sheet_depth.min(depth_limit) + (e - reach);
         let framed_body = |body: u32| frames.is_some_and(|f| f.has(body));
         let spheres = frames.map(|f| {
             let at = framed::NodeAt {
@@ -463,8 +520,7 @@ impl BroadPhase {
                 positions,
                 surface,
                 bodies: &self.bodies,
-                enlargement: self.enlargement,
-                front: self.front,
+                reaches: self.reaches(),
                 window: self.window,
             };
             let pairs = framed::framed_pairs(&input, frames, (spheres, &self.bins), &two_sided);
@@ -629,8 +685,7 @@ impl BroadPhase {
     ) {
         self.found.resize_with(pieces.len(), Vec::new);
         self.found.truncate(pieces.len());
-        let e = self.enlargement;
-        let reaches = (e * e, self.front * self.front);
+        let reaches = self.reaches();
         let window = self.window;
         let (layout, table) = (self.layout, &self.table);
         let boxes = &self.boxes;
@@ -654,7 +709,7 @@ impl BroadPhase {
                     .zip(&surface.triangle_body[triangles.clone()]);
                 for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
                     let face = ids.map(|i| positions[i]);
-                    let sided = two_sided(owner);
+                    let reach = reaches.of_face(two_sided(owner));
                     let mut window_reach = window.of_face_once(face);
                     let candidate = Candidate {
                         // Node ids fit in u32: ContactSurface::validate checks the count.
@@ -666,13 +721,7 @@ impl BroadPhase {
                     if let Some(spheres) = spheres {
                         let mut test = |x| {
                             in_box(bx, x)
-                                && is_candidate(
-                                    x,
-                                    face,
-                                    reaches,
-                                    (window.depth, &mut window_reach),
-                                    sided,
-                                )
+                                && is_candidate(x, face, reach, (window.depth, &mut window_reach))
                         };
                         let nodes = (at, bodies);
                         let face = (bx, candidate);
@@ -690,13 +739,7 @@ impl BroadPhase {
                         {
                             if body != owner
                                 && in_box(bx, x)
-                                && is_candidate(
-                                    x,
-                                    face,
-                                    reaches,
-                                    (window.depth, &mut window_reach),
-                                    sided,
-                                )
+                                && is_candidate(x, face, reach, (window.depth, &mut window_reach))
                             {
                                 pairs.push((k, candidate));
                             }

@@ -210,6 +210,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) dt: f64,
     pub(crate) margin: f64,
     pub(crate) depth_limit: f64,
+    /// How far behind a sheet its faces are listed (m), `Sheets::listing_depth`.
+    pub(crate) sheet_depth: f64,
     /// How far a node may move relative to a face or wall in one step.
     pub(crate) reach: StepReach,
     /// Whether to check each node against the faces' velocities for tunnelling.
@@ -503,7 +505,12 @@ impl Ctx<'_> {
         let counterpart = Counterpart::Body(group.body);
         let (reach, _) = self.reach(counterpart);
         let is_sheet = self.sheets.is_sheet(group.body);
-        let limit2 = self.depth_limit * self.depth_limit * (1.0 + PLANE_SLACK);
+        let watched_depth = if is_sheet {
+            self.sheet_depth
+        } else {
+            self.depth_limit
+        };
+        let limit2 = watched_depth * watched_depth * (1.0 + PLANE_SLACK);
         // The plane distance bounds the face distance from below: skip the faces beyond
         // the limit by more than the filter's slack (an exact test decides the rest).
         let plane_reach = limit2.sqrt() + plane_slack(self.depth_limit);

@@ -1622,7 +1622,28 @@ impl ContactModel {
                 dt,
             });
         }
+        // A sheet's faces are listed to its listing depth only (at least the sheet's step
+        // reach, half the margin): a node crossing a sheet must land within it, where the
+        // tunnelling guard watches the faces.
+        if self.sheets.any() && 2.0 * v_max * dt > self.sheet_listing_depth() {
+            let k = scan.fastest;
+            return Err(ContactError::Tunnelling {
+                node: self.surface.surface_nodes[k],
+                body: self.surface.node_body[k],
+                relative_to: "the sheets (twice its speed bounds the relative speed)".to_string(),
+                displacement: 2.0 * v_max * dt,
+                limit: self.margin,
+                scale: TunnellingScale::Margin,
+                dt,
+            });
+        }
         Ok(v_max)
+    }
+
+    /// How far behind a sheet its faces are listed (m), `Sheets::listing_depth`.
+    fn sheet_listing_depth(&self) -> f64 {
+        let reach = StepReach::new(self.margin, self.depth_limit);
+        self.sheets.listing_depth(self.depth_limit, reach.sheet)
     }
 
     /// [`ContactModel::rebuild_if_due`], then the planes of the faces new to the lists (a
@@ -1706,7 +1727,7 @@ impl ContactModel {
         self.broad.build(
             positions,
             &self.surface,
-            (self.margin, self.depth_limit),
+            (self.margin, self.depth_limit, self.sheet_listing_depth()),
             active_frames(&self.rigid_frames, self.frames_active),
             |body| sheets.is_sheet(body),
         );
@@ -1790,6 +1811,7 @@ impl ContactModel {
             dt,
             margin: self.margin,
             depth_limit: self.depth_limit,
+            sheet_depth: self.sheet_listing_depth(),
             reach: guards.reach,
             check_faces: guards.check_faces,
             check_walls: guards.check_walls,

@@ -55,7 +55,7 @@
 
 use crate::ContactError;
 use crate::broad::Candidate;
-use crate::detect::{FaceContact, FaceGroup};
+use crate::detect::{FaceContact, FaceGroup, plane_slack};
 use crate::model::positive_length;
 use crate::narrow::{FaceHit, closest_point_weights, front_distance, point_at};
 use crate::vec3::{add, cross, dot, norm, norm2, scale, sub};
@@ -94,6 +94,29 @@ impl Sheets {
             self.flags[b as usize] = true;
         }
         Ok(())
+    }
+
+    /// How far behind a sheet its faces are listed for a node (m): what a kept hit and
+    /// the tunnelling guard need, at most the depth limit `depth_limit`; `step_reach` is
+    /// how far a node may move relative to a sheet in one step (`StepReach::sheet`).
+    ///
+    /// A kept hit is at most the fold depth deep, and [`closest_contact`] looks at the
+    /// faces within `1 + TIE` times its depth plus the plane slack, so those are listed. A
+    /// node farther than that from every listed face has no kept hit whatever lies
+    /// beyond: its closest point over the listed faces is deeper than the fold depth too,
+    /// or it has none. The forces are then those of lists that reach the depth limit; the
+    /// count of discarded fold artefacts counts only the hits within this depth. The
+    /// tunnelling guard watches the sheet faces within this depth (at least the step
+    /// reach), and the model refuses a step in which two nodes could approach by more
+    /// (`ContactModel::check_scan`).
+    pub(crate) fn listing_depth(&self, depth_limit: f64, step_reach: f64) -> f64 {
+        let kept = self.fold_depth.max(step_reach);
+        (kept * (1.0 + TIE) + plane_slack(depth_limit)).min(depth_limit)
+    }
+
+    /// Whether any body is a sheet.
+    pub(crate) fn any(&self) -> bool {
+        self.flags.iter().any(|&f| f)
     }
 
     /// Whether `body` is a sheet.

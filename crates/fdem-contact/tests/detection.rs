@@ -734,6 +734,75 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
 }
 
 #[test]
+fn a_sheet_listed_to_its_fold_depth_gives_the_forces_of_one_listed_to_the_depth_limit() {
+    // The sliding, poking sheet vertex of the test above with the depth limit at six
+    // margins and the sheet's fold depth at one: the sheet's faces are listed to about the
+    // fold depth, not the depth limit. A hit deeper than the fold depth would be discarded
+    // anyway, so the forces must equal bit for bit those of a model whose fold depth is the
+    // depth limit (its sheet lists reach the depth limit), rebuilt at every evaluation.
+    // The shorter lists must hold every pair within the fold depth, and be shorter.
+    let margin = 2e-4;
+    let (assembly, params) = frictional_cluster(margin);
+    let sheet = 1u32;
+    let depth_limit = 6.0 * margin;
+    let fold = margin;
+    // A skin of a quarter margin, as the triaxial test's: the lists reach little beyond
+    // the listing depth, so lists too short would miss pairs within the fold depth.
+    let skin = 0.25 * margin;
+    let mut short = model_for(&assembly, params, vec![], 1e-4, Some(skin));
+    let mut long = model_for(&assembly, params, vec![], 1e-4, Some(skin));
+    for (m, fold) in [(&mut short, fold), (&mut long, depth_limit)] {
+        m.set_depth_limit(depth_limit).unwrap();
+        m.set_sheet_bodies(&[sheet], fold).unwrap();
+    }
+    let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
+    let others = surface_nodes_but(&assembly, sheet as usize);
+    let (rattler, target) = own
+        .iter()
+        .flat_map(|&i| others.iter().map(move |&j| (i, j)))
+        .min_by(|a, b| {
+            let d =
+                |(i, j): (usize, usize)| common::norm(sub(assembly.nodes[i], assembly.nodes[j]));
+            d(*a).total_cmp(&d(*b))
+        })
+        .expect("nodes");
+    let towards = sub(assembly.nodes[target], assembly.nodes[rattler]);
+    let direction = scale(towards, 1.0 / common::norm(towards));
+    let side = cross(direction, common::random_unit(&mut rng(11)));
+    let tangent = scale(side, 1.0 / common::norm(side));
+    let bodies = oscillating(&assembly, 5, 0.12 * margin, 0.12 * margin);
+    let sheet_pairs = |m: &ContactModel| {
+        (m.candidate_pairs().iter())
+            .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
+            .count()
+    };
+    let (mut short_pairs, mut long_pairs, mut contacts) = (0, 0, 0);
+    for step in 0..200 {
+        let mut x = bodies(step);
+        let poke = scale(
+            direction,
+            0.5 * margin * (0.23 * step as f64).sin().max(0.0),
+        );
+        let shift = add(poke, scale(tangent, 0.03 * margin * step as f64));
+        x[rattler] = add(x[rattler], shift);
+        let a = evaluate_against_a_full_build((&mut short, &mut long), &x, step);
+        contacts = contacts.max(a.contacts);
+        let models = (&short, &assembly);
+        assert_lists_hold_the_contact_capable_pairs(models, &x, (sheet, &others), fold, step);
+        short_pairs += sheet_pairs(&short);
+        long_pairs += sheet_pairs(&long);
+    }
+    eprintln!(
+        "sheet pairs over the steps: {short_pairs} listed to the fold depth, {long_pairs} to the depth limit; up to {contacts} contacts"
+    );
+    assert!(contacts >= 5, "{contacts} contacts");
+    assert!(
+        short_pairs < long_pairs,
+        "{short_pairs} against {long_pairs}"
+    );
+}
+
+#[test]
 fn a_sheet_coming_back_to_its_neighbours_has_its_faces_renewed() {
     // The outermost body of the cluster above, declared a sheet, starts six margins out
     // (beyond the lists' reach of the skin plus the depth limit, four margins) and comes

@@ -534,6 +534,41 @@ fn tunnelling_reach_is_the_depth_limit_against_solids_and_the_margin_against_she
 }
 
 #[test]
+fn a_step_longer_than_the_sheets_listing_depth_is_refused() {
+    // A sheet's faces are listed to about its fold depth (or half the margin, if more),
+    // not to the depth limit: a node crossing the sheet in one step must land within that
+    // depth, where the guard watches the faces. With the fold depth at half a margin, the
+    // pair approaching 0.6 margin per step (below the depth limit of 4 margins) is refused
+    // on the margin's scale as a step too long for the sheets, and nothing is added; with
+    // the fold depth at one margin the same step passes that check and is refused by the
+    // faces' own check (test above).
+    let assembly = overlapping_pair(&mut rng(11), 1, 0.01, 0.0);
+    let dt = 1e-6;
+    let sheet_model = |fold_margins: f64| {
+        let mut model = model_for(&assembly, ContactParams::default(), vec![], 1e-4, None);
+        let margin = model.margin();
+        model.set_depth_limit(4.0 * margin).unwrap();
+        model.set_sheet_bodies(&[1], fold_margins * margin).unwrap();
+        (model, margin)
+    };
+    let mut f = vec![[0.0; 3]; assembly.n_nodes()];
+    let (mut model, margin) = sheet_model(0.5);
+    let v = approach(&assembly, 0.3 * margin, dt);
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    let msg = tunnelling_on_scale(err, TunnellingScale::Margin);
+    assert!(msg.contains("relative to the sheets"), "{msg}");
+    assert!(f.iter().all(|x| *x == [0.0; 3]), "nothing added on error");
+    let (mut model, _) = sheet_model(1.0);
+    let err = model
+        .add_forces(&assembly.nodes, &v, 0.0, dt, &mut f)
+        .unwrap_err();
+    let msg = tunnelling_on_scale(err, TunnellingScale::Margin);
+    assert!(msg.contains("a face of body 1"), "{msg}");
+}
+
+#[test]
 fn a_node_too_fast_for_the_depth_limit_grows_it_within_its_cap() {
     // The pair of the test above at 2.4 margins relative per step, the depth limit at 4
     // margins (a reach of 2 against solids): with a cap of 10 margins the limit grows to

@@ -44,7 +44,9 @@
 
 use rayon::prelude::*;
 
-use super::{BodyIndex, Candidate, CellTable, WindowReach, grown_box, in_box, is_candidate, pack};
+use super::{
+    BodyIndex, Candidate, CellTable, Reaches, WindowReach, grown_box, in_box, is_candidate, pack,
+};
 use crate::ContactSurface;
 use crate::narrow::distance2_to_triangle;
 use crate::rigid_frames::RigidFrames;
@@ -432,8 +434,7 @@ pub(super) struct ScanInput<'a> {
     pub(super) positions: &'a [[f64; 3]],
     pub(super) surface: &'a ContactSurface,
     pub(super) bodies: &'a BodyIndex,
-    pub(super) enlargement: f64,
-    pub(super) front: f64,
+    pub(super) reaches: Reaches,
     pub(super) window: WindowReach,
 }
 
@@ -448,7 +449,7 @@ pub(super) fn framed_pairs(
     (grid, cache): (&SphereGrid, &BinCache),
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
-    let e = input.enlargement;
+    let e = input.reaches.enlargement;
     let mut found: Vec<Vec<(u32, Candidate)>> = (0..grid.spheres.len().div_ceil(BODY_CHUNK))
         .into_par_iter()
         .map(|chunk| {
@@ -482,7 +483,7 @@ fn loose_pairs(
     (grid, cache): (&SphereGrid, &BinCache),
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
-    let e = input.enlargement;
+    let e = input.reaches.enlargement;
     let loose: Vec<u32> = (0..input.bodies.bodies() as u32)
         .filter(|&b| !frames.has(b))
         .flat_map(|b| input.bodies.nodes(b as usize).iter().copied())
@@ -518,7 +519,7 @@ pub(super) fn refreshed_pairs(
     (dirty, cache): (&[bool], &mut BinCache),
     two_sided: &(impl Fn(u32) -> bool + Sync),
 ) -> Vec<Vec<(u32, Candidate)>> {
-    let e = input.enlargement;
+    let e = input.reaches.enlargement;
     let is_dirty = |body: u32| dirty.get(body as usize).is_some_and(|&d| d);
     if !frames.framed_bodies().any(|(body, _)| is_dirty(body)) {
         return Vec::new();
@@ -573,11 +574,11 @@ fn unframed_face_pairs(
     scratch: &mut (Vec<u32>, BoxCells),
     pairs: &mut Vec<(u32, Candidate)>,
 ) {
-    let e = input.enlargement;
+    let e = input.reaches.enlargement;
     let (owner, ids) = (input.surface.triangle_body[t], input.surface.triangles[t]);
     let face = ids.map(|i| input.positions[i]);
     let bx = grown_box(face, e);
-    let (reaches, sided) = ((e * e, input.front * input.front), two_sided(owner));
+    let reach = input.reaches.of_face(two_sided(owner));
     let window = input.window;
     let mut window_reach = window.of_face_once(face);
     let candidate = Candidate {
@@ -586,9 +587,8 @@ fn unframed_face_pairs(
         body: owner,
     };
     let nodes = (input.nodes, input.bodies);
-    let mut test = |x| {
-        in_box(&bx, x) && is_candidate(x, face, reaches, (window.depth, &mut window_reach), sided)
-    };
+    let mut test =
+        |x| in_box(&bx, x) && is_candidate(x, face, reach, (window.depth, &mut window_reach));
     grid.pairs_of_face((&bx, candidate), nodes, &mut test, scratch, pairs);
 }
 
@@ -656,15 +656,14 @@ fn pairs_with(
     two_sided: &(impl Fn(u32) -> bool + Sync),
     pairs: &mut Vec<(u32, Candidate)>,
 ) {
-    let e = input.enlargement;
+    let e = input.reaches.enlargement;
     let reach = (b.radius + e) * (1.0 + SCREEN_SLACK);
     let pose = frames.pose(b.slot as usize);
     let first = frames.first_triangle(b.slot as usize) as usize;
     let bins = &cache.bins[b.bins as usize];
     let cones = frames.cones(frames.template_of(b.slot as usize));
     let e_t = e * (1.0 + SCREEN_SLACK) / pose.scale;
-    let reaches = (e * e, input.front * input.front);
-    let sided = two_sided(b.body);
+    let face_reach = input.reaches.of_face(two_sided(b.body));
     for &k in nodes {
         let x = input.nodes.get(k);
         if norm2(sub(x, b.centre)) > reach * reach {
@@ -691,9 +690,8 @@ fn pairs_with(
             if is_candidate(
                 x,
                 face,
-                reaches,
+                face_reach,
                 (window.depth, &mut || window.of_face(face)),
-                sided,
             ) {
                 pairs.push((
                     k,

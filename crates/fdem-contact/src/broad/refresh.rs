@@ -41,8 +41,8 @@ use rayon::prelude::*;
 
 use super::framed;
 use super::{
-    BodyIndex, BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, TRIANGLE_CHUNK, WindowReach,
-    grown_box, in_box, is_candidate,
+    BodyIndex, BroadPhase, CHUNK, Candidate, FRONT_SKINS, Frame, Reaches, TRIANGLE_CHUNK,
+    WindowReach, grown_box, in_box, is_candidate,
 };
 use crate::ContactSurface;
 use crate::mean_motion::{Expected, drift2};
@@ -253,6 +253,7 @@ const MAX_CELLS_PER_BOX: i64 = 1 << 12;
 struct RefreshReach {
     enlargement: f64,
     front: f64,
+    sheet: f64,
     window: WindowReach,
 }
 
@@ -261,13 +262,18 @@ impl RefreshReach {
         RefreshReach {
             enlargement: broad.enlargement + 0.5 * skin,
             front: broad.front + FRONT_SKINS * 0.5 * skin,
+            sheet: broad.sheet_enlargement + 0.5 * skin,
             window: WindowReach::of_refresh(skin, broad.window.depth),
         }
     }
 
-    /// The squared enlargement and front reach, as the candidate test takes them.
-    fn squared(&self) -> (f64, f64) {
-        (self.enlargement * self.enlargement, self.front * self.front)
+    /// The reaches the candidate test takes.
+    fn reaches(&self) -> Reaches {
+        Reaches {
+            enlargement: self.enlargement,
+            front: self.front,
+            sheet: self.sheet,
+        }
     }
 }
 
@@ -419,8 +425,7 @@ impl BroadPhase {
                 positions,
                 surface,
                 bodies: &self.bodies,
-                enlargement: reach.enlargement,
-                front: reach.front,
+                reaches: reach.reaches(),
                 window: reach.window,
             };
             let dirty_framed = (dirty, &mut self.bins);
@@ -599,7 +604,7 @@ fn faces_of_dirty_nodes(
         return Vec::new();
     }
     let e = reach.enlargement;
-    let reaches = reach.squared();
+    let reaches = reach.reaches();
     near.par_chunks(TRIANGLE_CHUNK)
         .map(|faces| {
             let mut pairs = Vec::new();
@@ -609,7 +614,7 @@ fn faces_of_dirty_nodes(
                 let ids = surface.triangles[t];
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
-                let sided = two_sided(owner);
+                let face_reach = reaches.of_face(two_sided(owner));
                 let mut window_reach = reach.window.of_face_once(face);
                 grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
                     let x = positions[surface.surface_nodes[k as usize]];
@@ -618,9 +623,8 @@ fn faces_of_dirty_nodes(
                         && is_candidate(
                             x,
                             face,
-                            reaches,
+                            face_reach,
                             (reach.window.depth, &mut window_reach),
-                            sided,
                         )
                     {
                         pairs.push((k, candidate(ids, t, owner)));
@@ -647,7 +651,7 @@ fn nodes_of_dirty_faces(
         return Vec::new();
     }
     let e = reach.enlargement;
-    let reaches = reach.squared();
+    let reaches = reach.reaches();
     near.par_chunks(CHUNK)
         .map(|nodes| {
             let mut pairs = Vec::new();
@@ -668,9 +672,8 @@ fn nodes_of_dirty_faces(
                         && is_candidate(
                             x,
                             face,
-                            reaches,
+                            reaches.of_face(two_sided(owner)),
                             (reach.window.depth, &mut || reach.window.of_face(face)),
-                            two_sided(owner),
                         )
                     {
                         pairs.push((k as u32, candidate(ids, t, owner)));
