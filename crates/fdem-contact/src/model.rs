@@ -717,7 +717,9 @@ impl ContactModel {
     /// means, as the triaxial test does every output). The crate's `sheet` module explains
     /// these rules and their invariants. A partial refresh of the broad phase renews a
     /// sheet's pairs node by node (its drifted nodes and the faces they are corners of),
-    /// not the whole sheet.
+    /// not the whole sheet. A sheet's faces are listed only to about the fold depth, and a
+    /// step in which two nodes could approach by more is refused (the `sheet` module). The
+    /// next evaluation rebuilds the lists.
     ///
     /// # Errors
     /// [`ContactError::InvalidLength`] for a `fold_depth` that is not finite and > 0.
@@ -732,7 +734,11 @@ impl ContactModel {
         {
             return Err(framed_sheet(b));
         }
-        self.sheets.declare(bodies, fold_depth)
+        self.sheets.declare(bodies, fold_depth)?;
+        // A sheet's faces are listed in both directions and to its listing depth: lists
+        // built before the declaration do not follow that rule.
+        self.rebuild_requested = true;
+        Ok(())
     }
 
     /// Changes the velocity of wall `index` from `time` on, keeping its position at `time`

@@ -40,9 +40,12 @@
 //!   the flags is not a sheet.
 //! - The rules concern the faces of a sheet, as the counterpart of another body's node; the
 //!   sheet's own nodes against particle faces are ordinary node-to-face contacts.
-//! - The broad phase keeps every face of a sheet within reach of a node as a candidate,
-//!   also in front of its plane (the closest point and its pseudo-normal need the faces
-//!   around it); see the broad phase's `FRONT_SKINS`.
+//! - The broad phase keeps every face of a sheet within the skin plus the listing depth
+//!   of a node as a candidate ([`Sheets::listing_depth`]: about the fold depth, at most
+//!   the depth limit), also in front of its plane (the closest point and its
+//!   pseudo-normal need the faces around it); see the broad phase's `FRONT_SKINS`. Every
+//!   kept hit lies within that depth, and so does every face the tunnelling guard
+//!   watches; the model refuses a step in which two nodes could approach by more.
 //! - Per (node, sheet) the closest point decides, then the fold depth. A discarded fold
 //!   artefact is never a [`ContactError::PenetrationTooDeep`].
 //! - Every test is exact on its own; the plane pre-filter

@@ -738,6 +738,16 @@ fn sheet_hits_deeper_than_the_fold_depth_are_discarded_and_counted() {
     assert!(deep.discarded_sheet_hits > 0, "{deep:?}");
     assert_eq!(shallow.discarded_sheet_hits, 0);
     assert!(shallow.contacts > deep.contacts);
+    // Declared after an evaluation, the sheet's rules need new lists: the next evaluation
+    // rebuilds them (nothing has moved, so nothing else would).
+    let mut late = model_for(&pair, ContactParams::default(), vec![], 1e-4, Some(margin));
+    let (v, mut f) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+    late.add_forces(&pair.nodes, &v, 0.0, 1e-7, &mut f).unwrap();
+    late.set_sheet_bodies(&[1], 0.01 * margin).unwrap();
+    let report = late
+        .add_forces(&pair.nodes, &v, 1e-7, 1e-7, &mut f)
+        .unwrap();
+    assert!(report.rebuilt, "{report:?}");
     let mut model = model_for(&pair, ContactParams::default(), vec![], 1e-4, Some(margin));
     for bad in [0.0, f64::NAN] {
         let e = model.set_sheet_bodies(&[1], bad).unwrap_err().to_string();
