@@ -1616,32 +1616,28 @@ impl ContactModel {
         // node in the face's window at an evaluation ([`StepReach`]), and no two nodes
         // approach faster than twice the largest speed.
         let v_max = scan.max_speed2.sqrt();
-        if 2.0 * v_max * dt > self.depth_limit {
+        let fastest = |relative_to: &str, (limit, scale): (f64, TunnellingScale)| {
             let k = scan.fastest;
-            return Err(ContactError::Tunnelling {
+            ContactError::Tunnelling {
                 node: self.surface.surface_nodes[k],
                 body: self.surface.node_body[k],
-                relative_to: "other bodies (twice its speed bounds the relative speed)".to_string(),
+                relative_to: format!("{relative_to} (twice its speed bounds the relative speed)"),
                 displacement: 2.0 * v_max * dt,
-                limit: self.depth_limit,
-                scale: TunnellingScale::DepthLimit,
+                limit,
+                scale,
                 dt,
-            });
+            }
+        };
+        if 2.0 * v_max * dt > self.depth_limit {
+            let limit = (self.depth_limit, TunnellingScale::DepthLimit);
+            return Err(fastest("other bodies", limit));
         }
         // A sheet's faces are listed to its listing depth only (at least the sheet's step
         // reach, half the margin): a node crossing a sheet must land within it, where the
         // tunnelling guard watches the faces.
         if self.sheets.any() && 2.0 * v_max * dt > self.sheet_listing_depth() {
-            let k = scan.fastest;
-            return Err(ContactError::Tunnelling {
-                node: self.surface.surface_nodes[k],
-                body: self.surface.node_body[k],
-                relative_to: "the sheets (twice its speed bounds the relative speed)".to_string(),
-                displacement: 2.0 * v_max * dt,
-                limit: self.margin,
-                scale: TunnellingScale::Margin,
-                dt,
-            });
+            let limit = (self.margin, TunnellingScale::Margin);
+            return Err(fastest("the sheets", limit));
         }
         Ok(v_max)
     }

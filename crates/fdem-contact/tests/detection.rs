@@ -584,6 +584,46 @@ fn sheet_step(
     (a, alone, needed)
 }
 
+/// The positions of the sheet tests at each step: the cluster's bodies oscillating 0.12
+/// margin, and the sheet's surface node nearest to another body's (a vertex) pushed
+/// towards it, poking into the neighbour by up to half a margin (its own pairs) while the
+/// faces around it sweep over the neighbour's nodes (their pairs). It slides steadily
+/// across the neighbour, perpendicular to the push: six margins in 200 steps, farther than
+/// the lists of a full build reach, so the pairs around the vertex must be found anew as
+/// it goes.
+fn poking_vertex(
+    assembly: &MeshAssembly,
+    sheet: u32,
+    margin: f64,
+) -> impl Fn(usize) -> Vec<[f64; 3]> {
+    let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
+    let others = surface_nodes_but(assembly, sheet as usize);
+    let (rattler, target) = own
+        .iter()
+        .flat_map(|&i| others.iter().map(move |&j| (i, j)))
+        .min_by(|a, b| {
+            let d =
+                |(i, j): (usize, usize)| common::norm(sub(assembly.nodes[i], assembly.nodes[j]));
+            d(*a).total_cmp(&d(*b))
+        })
+        .expect("nodes");
+    let towards = sub(assembly.nodes[target], assembly.nodes[rattler]);
+    let direction = scale(towards, 1.0 / common::norm(towards));
+    let side = cross(direction, common::random_unit(&mut rng(11)));
+    let tangent = scale(side, 1.0 / common::norm(side));
+    let bodies = oscillating(assembly, 5, 0.12 * margin, 0.12 * margin);
+    move |step| {
+        let mut x = bodies(step);
+        let poke = scale(
+            direction,
+            0.5 * margin * (0.23 * step as f64).sin().max(0.0),
+        );
+        let shift = add(poke, scale(tangent, 0.03 * margin * step as f64));
+        x[rattler] = add(x[rattler], shift);
+        x
+    }
+}
+
 /// The surface nodes of every body but `body`.
 fn surface_nodes_but(assembly: &MeshAssembly, body: usize) -> Vec<usize> {
     (0..assembly.n_bodies())
@@ -659,10 +699,10 @@ fn refreshing_the_drifted_bodies_gives_the_forces_of_full_builds_bit_for_bit() {
 #[test]
 fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() {
     // The cluster of the test above with body 1 declared a sheet, its bodies oscillating
-    // 0.12 margin, and one surface node of the sheet (a vertex) moving on its own: it
-    // slides six margins across its nearest neighbour while poking into it by up to half a
-    // margin, so it drifts past half the margin again and again while the rest of the
-    // sheet stays below a quarter of it. The refresh renews
+    // 0.12 margin, and one surface node of the sheet (a vertex) moving on its own
+    // ([`poking_vertex`]): it slides six margins across its nearest neighbour while poking
+    // into it by up to half a margin, so it drifts past half the margin again and again
+    // while the rest of the sheet stays below a quarter of it. The refresh renews
     // the sheet node by node (its drifted node and the faces around it). Forces and
     // contacts must agree bit for bit with full builds at every evaluation, and refreshes
     // that renewed no whole body (the sheet's node alone) must have happened.
@@ -676,38 +716,8 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
         m.set_depth_limit(depth_limit).unwrap();
         m.set_sheet_bodies(&[sheet], depth_limit).unwrap();
     }
-    // The sheet's surface node nearest to another body's, pushed towards it: the vertex
-    // pokes into the neighbour (its own pairs) and the faces around it sweep over the
-    // neighbour's nodes (their pairs).
-    let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
     let others = surface_nodes_but(&assembly, sheet as usize);
-    let (rattler, target) = own
-        .iter()
-        .flat_map(|&i| others.iter().map(move |&j| (i, j)))
-        .min_by(|a, b| {
-            let d =
-                |(i, j): (usize, usize)| common::norm(sub(assembly.nodes[i], assembly.nodes[j]));
-            d(*a).total_cmp(&d(*b))
-        })
-        .expect("nodes");
-    let towards = sub(assembly.nodes[target], assembly.nodes[rattler]);
-    let direction = scale(towards, 1.0 / common::norm(towards));
-    // A steady slide across the neighbour, perpendicular to the push: six margins in 200
-    // steps, farther than the lists of a full build reach (the skin plus the depth limit),
-    // so the pairs around the vertex must be found anew as it goes.
-    let side = cross(direction, common::random_unit(&mut rng(11)));
-    let tangent = scale(side, 1.0 / common::norm(side));
-    let bodies = oscillating(&assembly, 5, 0.12 * margin, 0.12 * margin);
-    let positions = |step: usize| {
-        let mut x = bodies(step);
-        let poke = scale(
-            direction,
-            0.5 * margin * (0.23 * step as f64).sin().max(0.0),
-        );
-        let shift = add(poke, scale(tangent, 0.03 * margin * step as f64));
-        x[rattler] = add(x[rattler], shift);
-        x
-    };
+    let positions = poking_vertex(&assembly, sheet, margin);
     let (mut node_only, mut contacts, mut sheet_pairs) = (0, 0, 0);
     for step in 0..200 {
         let x = positions(step);
@@ -755,22 +765,8 @@ fn a_sheet_listed_to_its_fold_depth_gives_the_forces_of_one_listed_to_the_depth_
         m.set_depth_limit(depth_limit).unwrap();
         m.set_sheet_bodies(&[sheet], fold).unwrap();
     }
-    let own = &assembly.surface_nodes[assembly.bodies[sheet as usize].surface_nodes.clone()];
     let others = surface_nodes_but(&assembly, sheet as usize);
-    let (rattler, target) = own
-        .iter()
-        .flat_map(|&i| others.iter().map(move |&j| (i, j)))
-        .min_by(|a, b| {
-            let d =
-                |(i, j): (usize, usize)| common::norm(sub(assembly.nodes[i], assembly.nodes[j]));
-            d(*a).total_cmp(&d(*b))
-        })
-        .expect("nodes");
-    let towards = sub(assembly.nodes[target], assembly.nodes[rattler]);
-    let direction = scale(towards, 1.0 / common::norm(towards));
-    let side = cross(direction, common::random_unit(&mut rng(11)));
-    let tangent = scale(side, 1.0 / common::norm(side));
-    let bodies = oscillating(&assembly, 5, 0.12 * margin, 0.12 * margin);
+    let positions = poking_vertex(&assembly, sheet, margin);
     let sheet_pairs = |m: &ContactModel| {
         (m.candidate_pairs().iter())
             .filter(|&&(_, t)| assembly.triangle_body[t] == sheet)
@@ -778,13 +774,7 @@ fn a_sheet_listed_to_its_fold_depth_gives_the_forces_of_one_listed_to_the_depth_
     };
     let (mut short_pairs, mut long_pairs, mut contacts) = (0, 0, 0);
     for step in 0..200 {
-        let mut x = bodies(step);
-        let poke = scale(
-            direction,
-            0.5 * margin * (0.23 * step as f64).sin().max(0.0),
-        );
-        let shift = add(poke, scale(tangent, 0.03 * margin * step as f64));
-        x[rattler] = add(x[rattler], shift);
+        let x = positions(step);
         let a = evaluate_against_a_full_build((&mut short, &mut long), &x, step);
         contacts = contacts.max(a.contacts);
         let models = (&short, &assembly);
