@@ -584,6 +584,23 @@ fn sheet_step(
     (a, alone, needed)
 }
 
+/// Two models of `assembly` for the sheet tests (time step 1e-4 s), with the skin and
+/// depth limit given and body `sheet` declared a sheet with the first and the second fold
+/// depth respectively.
+fn sheet_models(
+    (assembly, params): (&MeshAssembly, ContactParams),
+    (skin, depth_limit): (f64, f64),
+    (sheet, folds): (u32, [f64; 2]),
+) -> (ContactModel, ContactModel) {
+    let [a, b] = folds.map(|fold| {
+        let mut m = model_for(assembly, params, vec![], 1e-4, Some(skin));
+        m.set_depth_limit(depth_limit).unwrap();
+        m.set_sheet_bodies(&[sheet], fold).unwrap();
+        m
+    });
+    (a, b)
+}
+
 /// The positions of the sheet tests at each step: the cluster's bodies oscillating 0.12
 /// margin, and the sheet's surface node nearest to another body's (a vertex) pushed
 /// towards it, poking into the neighbour by up to half a margin (its own pairs) while the
@@ -709,13 +726,12 @@ fn a_sheet_refreshed_node_by_node_gives_the_forces_of_full_builds_bit_for_bit() 
     let margin = 2e-4;
     let (assembly, params) = frictional_cluster(margin);
     let sheet = 1u32;
-    let mut refreshing = model_for(&assembly, params, vec![], 1e-4, Some(margin));
-    let mut rebuilding = model_for(&assembly, params, vec![], 1e-4, Some(margin));
     let depth_limit = 3.0 * margin;
-    for m in [&mut refreshing, &mut rebuilding] {
-        m.set_depth_limit(depth_limit).unwrap();
-        m.set_sheet_bodies(&[sheet], depth_limit).unwrap();
-    }
+    let (mut refreshing, mut rebuilding) = sheet_models(
+        (&assembly, params),
+        (margin, depth_limit),
+        (sheet, [depth_limit; 2]),
+    );
     let others = surface_nodes_but(&assembly, sheet as usize);
     let positions = poking_vertex(&assembly, sheet, margin);
     let (mut node_only, mut contacts, mut sheet_pairs) = (0, 0, 0);
@@ -759,12 +775,11 @@ fn a_sheet_listed_to_its_fold_depth_gives_the_forces_of_one_listed_to_the_depth_
     // A skin of a quarter margin, as the triaxial test's: the lists reach little beyond
     // the listing depth, so lists too short would miss pairs within the fold depth.
     let skin = 0.25 * margin;
-    let mut short = model_for(&assembly, params, vec![], 1e-4, Some(skin));
-    let mut long = model_for(&assembly, params, vec![], 1e-4, Some(skin));
-    for (m, fold) in [(&mut short, fold), (&mut long, depth_limit)] {
-        m.set_depth_limit(depth_limit).unwrap();
-        m.set_sheet_bodies(&[sheet], fold).unwrap();
-    }
+    let (mut short, mut long) = sheet_models(
+        (&assembly, params),
+        (skin, depth_limit),
+        (sheet, [fold, depth_limit]),
+    );
     let others = surface_nodes_but(&assembly, sheet as usize);
     let positions = poking_vertex(&assembly, sheet, margin);
     let sheet_pairs = |m: &ContactModel| {
@@ -825,24 +840,11 @@ fn a_sheet_coming_back_to_its_neighbours_has_its_faces_renewed() {
     let out = sub(centre(outermost), middle);
     let out = scale(out, 1.0 / common::norm(out));
     let depth_limit = 3.0 * margin;
-    let mut refreshing = model_for(
-        &assembly,
-        ContactParams::default(),
-        vec![],
-        1e-4,
-        Some(margin),
+    let (mut refreshing, mut rebuilding) = sheet_models(
+        (&assembly, ContactParams::default()),
+        (margin, depth_limit),
+        (sheet, [depth_limit; 2]),
     );
-    let mut rebuilding = model_for(
-        &assembly,
-        ContactParams::default(),
-        vec![],
-        1e-4,
-        Some(margin),
-    );
-    for m in [&mut refreshing, &mut rebuilding] {
-        m.set_depth_limit(depth_limit).unwrap();
-        m.set_sheet_bodies(&[sheet], depth_limit).unwrap();
-    }
     // The sheet holds an eighth of the surface nodes: let one refresh renew them all.
     refreshing
         .set_refresh_policy(RefreshPolicy {
