@@ -17,12 +17,11 @@ use crate::law::{LawInput, evaluate_law};
 use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
 use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle, project_hand};
 use crate::prefetch::prefetch;
-use crate::rigid_frames::{RigidFrames, RigidMotion};
+use crate::rigid_frames::{NodeVelocities, RigidFrames, RigidMotion};
 use crate::sheet::{self, Sheets};
 use crate::vec3::{add, norm, scale, sub};
 use crate::wall::wall_distance;
 use crate::{ContactError, ContactSurface, NodeCoefficients, TunnellingScale, Wall, WallShape};
-use fdem_core::geometry::rigid_velocity;
 
 /// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
 const PLANE_SLACK: f64 = 1e-9;
@@ -206,7 +205,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) previous: &'a History,
     pub(crate) kernel: ProjectionKernel,
     pub(crate) positions: &'a [[f64; 3]],
-    pub(crate) velocities: &'a [[f64; 3]],
+    /// The node velocities: a framed body's from its motion when given.
+    pub(crate) velocities: NodeVelocities<'a>,
     pub(crate) dt: f64,
     pub(crate) margin: f64,
     pub(crate) depth_limit: f64,
@@ -222,9 +222,6 @@ pub(crate) struct Ctx<'a> {
     /// The rigid bodies' frames, when they stand in for their faces' world planes (then
     /// `planes` has no plane of this evaluation for those faces).
     pub(crate) frames: Option<&'a RigidFrames>,
-    /// The framed bodies' motions of this evaluation, when given: a framed face's velocity
-    /// then comes from its body's motion and its corners' positions.
-    pub(crate) motions: Option<&'a [RigidMotion]>,
     /// Whether to record the rejections of the stored-energy jump log.
     pub(crate) diagnose: bool,
     /// Whether an evaluation came before this one (its contacts are `previous`).
@@ -330,7 +327,7 @@ impl Ctx<'_> {
     ) -> Result<(), ContactError> {
         let node = self.surface.surface_nodes[k];
         let x = self.positions[node];
-        let v = self.velocities[node];
+        let v = self.velocities.of_surface_node(self.surface, k, x);
         let mut signed = std::mem::take(&mut scratch.signed);
         let mut outside = std::mem::take(&mut scratch.outside);
         self.signed_distances(x, cands, &mut signed, &mut outside);
@@ -527,7 +524,9 @@ impl Ctx<'_> {
             if !watched {
                 continue;
             }
-            let [a, b, cc] = c.nodes.map(|j| self.velocities[j as usize]);
+            let [a, b, cc] = std::array::from_fn(|i| {
+                self.velocities.of(group.body, c.nodes[i] as usize, face[i])
+            });
             let vc = scale(add(add(a, b), cc), 1.0 / 3.0);
             let d = norm(sub(v, vc)) * self.dt;
             if d > reach {
@@ -598,13 +597,9 @@ impl Ctx<'_> {
         // A framed body's corner velocities are its motion's at their positions, the same
         // bits as the placed ones, without a read of the velocity array (a cache miss per
         // contact in large models).
-        let motion = (self.frames.zip(self.motions)).and_then(|(f, m)| f.motion_of(other, m));
         for (j, wj) in nodes.iter().zip(w) {
             let x = self.positions[*j];
-            let vj = match motion {
-                Some(m) => rigid_velocity(m.velocity, m.angular_velocity, m.centre, x),
-                None => self.velocities[*j],
-            };
+            let vj = self.velocities.of(other, *j, x);
             v_face = add(v_face, scale(vj, wj));
             point = add(point, scale(x, wj));
         }

@@ -13,7 +13,7 @@ use crate::mean_motion::{DriftAllowance, Expected, IDENTITY, Matrix, MeanMotion}
 use crate::narrow::ProjectionKernel;
 use crate::params::spring_dashpot_time_step;
 use crate::prefetch::prefetch;
-use crate::rigid_frames::{RigidFrames, RigidMotion, RigidPose, RigidTemplate};
+use crate::rigid_frames::{NodeVelocities, RigidFrames, RigidMotion, RigidPose, RigidTemplate};
 use crate::scan::{Nodes, Scan, bound_within};
 use crate::sheet::Sheets;
 use crate::vec3::{add, is_finite, norm, norm2, scale, sub};
@@ -986,6 +986,13 @@ impl ContactModel {
     /// why the results are the same). Each motion must hold for the nodes as placed for the
     /// evaluation.
     ///
+    /// An evaluation at `time` takes the velocity of every node of those bodies from its
+    /// motion, `fdem_core::geometry::rigid_velocity(velocity, angular_velocity, centre, x)`
+    /// at the node's position `x`, and never reads those nodes' entries of the
+    /// `velocities` it is given: a caller that places them with that function from the same
+    /// motion gets the same contacts bit for bit, and a caller that reads them nowhere else
+    /// need not place them at all.
+    ///
     /// # Errors
     /// [`ContactError::LengthMismatch`] for another number of motions; `InconsistentSurface`
     /// when no frames were set.
@@ -1307,7 +1314,7 @@ impl ContactModel {
         let nodes = Nodes {
             surface: &self.surface,
             positions,
-            velocities,
+            velocities: NodeVelocities::new(velocities, self.rigid_frames.as_ref(), time),
             reference: self.broad.built.then_some(self.broad.reference.as_slice()),
             expected,
         };
@@ -1409,7 +1416,7 @@ impl ContactModel {
         self.wall_shapes.clear();
         self.wall_shapes
             .extend(self.walls.iter().map(|w| w.shape_at(time)));
-        let v_max = match self.check_scan(&scan, positions, velocities, dt) {
+        let v_max = match self.check_scan(&scan, positions, velocities, (time, dt)) {
             Err(e) if let Some(grown) = self.grown_for(&e) => {
                 self.depth_limit = grown;
                 self.rebuild_requested = true;
@@ -1597,18 +1604,20 @@ impl ContactModel {
         scan: &Scan,
         positions: &[[f64; 3]],
         velocities: &[[f64; 3]],
-        dt: f64,
+        (time, dt): (f64, f64),
     ) -> Result<f64, ContactError> {
         if let Some((k, is_velocity)) = scan.bad {
             let node = self.surface.surface_nodes[k];
+            let x = positions[node];
+            let velocities = NodeVelocities::new(velocities, self.rigid_frames.as_ref(), time);
             return Err(ContactError::NonFinite {
                 quantity: if is_velocity { "velocity" } else { "position" },
                 node,
                 body: self.surface.node_body[k],
                 value: if is_velocity {
-                    velocities[node]
+                    velocities.of_surface_node(&self.surface, k, x)
                 } else {
-                    positions[node]
+                    x
                 },
             });
         }
@@ -1809,7 +1818,7 @@ impl ContactModel {
             previous: &self.history,
             kernel: self.kernel,
             positions,
-            velocities,
+            velocities: NodeVelocities::new(velocities, self.rigid_frames.as_ref(), time),
             dt,
             margin: self.margin,
             depth_limit: self.depth_limit,
@@ -1819,7 +1828,6 @@ impl ContactModel {
             check_walls: guards.check_walls,
             sheets: &self.sheets,
             frames,
-            motions,
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
             clear_of_walls: &self.clear_of_walls,

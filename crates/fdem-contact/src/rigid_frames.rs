@@ -47,6 +47,7 @@ use crate::model::unit_plane;
 use crate::narrow::BARYCENTRIC_TOLERANCE;
 use crate::vec3::{add, cross, dot, norm, norm2, scale, sub};
 use crate::{ContactError, ContactSurface};
+use fdem_core::geometry::rigid_velocity;
 
 /// The surface of a rigid body's template: its nodes in template coordinates, and its
 /// faces as triples of those nodes, outward (counter-clockwise seen from outside), in the
@@ -118,6 +119,61 @@ pub struct RigidMotion {
     pub angular_velocity: [f64; 3],
     /// The point of the body that moves at `velocity` (m).
     pub centre: [f64; 3],
+}
+
+/// The node velocities an evaluation reads: the caller's array, except for the nodes of a
+/// framed body whose motion of the evaluation's time the caller gave
+/// ([`crate::ContactModel::set_rigid_motions`]). Those move with their body, at
+/// `fdem_core::geometry::rigid_velocity` of the motion and their position: the bits a
+/// caller that places them from the same motion writes, read without the array (so a
+/// caller may leave those entries as they were).
+#[derive(Clone, Copy)]
+pub(crate) struct NodeVelocities<'a> {
+    array: &'a [[f64; 3]],
+    moving: Option<(&'a RigidFrames, &'a [RigidMotion])>,
+}
+
+impl<'a> NodeVelocities<'a> {
+    /// The velocities at `time`: `array`, and the motions `frames` holds if they are of
+    /// that time (whether or not the frames serve the evaluation's planes).
+    pub(crate) fn new(
+        array: &'a [[f64; 3]],
+        frames: Option<&'a RigidFrames>,
+        time: f64,
+    ) -> NodeVelocities<'a> {
+        let moving = frames.and_then(|f| Some((f, f.motions_at(time)?)));
+        NodeVelocities { array, moving }
+    }
+
+    /// The motion body `body` moves with, if it is framed and its motion was given.
+    #[inline(always)]
+    pub(crate) fn motion(&self, body: u32) -> Option<&'a RigidMotion> {
+        self.moving.and_then(|(f, m)| f.motion_of(body, m))
+    }
+
+    /// The velocity of global node `node`, of body `body`, at its position `x`.
+    #[inline(always)]
+    pub(crate) fn of(&self, body: u32, node: usize, x: [f64; 3]) -> [f64; 3] {
+        match self.motion(body) {
+            Some(m) => rigid_velocity(m.velocity, m.angular_velocity, m.centre, x),
+            None => self.array[node],
+        }
+    }
+
+    /// The velocity of surface node `k` of `surface`, at its position `x`.
+    #[inline(always)]
+    pub(crate) fn of_surface_node(
+        &self,
+        surface: &ContactSurface,
+        k: usize,
+        x: [f64; 3],
+    ) -> [f64; 3] {
+        let node = surface.surface_nodes[k];
+        match self.moving {
+            None => self.array[node],
+            Some(_) => self.of(surface.node_body[k], node, x),
+        }
+    }
 }
 
 /// Where a framed body's nodes had their reference positions: `c + G t` for template

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use crate::ContactSurface;
 use crate::broad::CHUNK;
 use crate::mean_motion::{Expected, drift2};
-use crate::rigid_frames::{NodeRun, RigidFrames, RigidMotion};
+use crate::rigid_frames::{NodeRun, NodeVelocities, RigidFrames, RigidMotion};
 use crate::vec3::{is_finite, norm2};
 
 /// Framed bodies per parallel work item of the scan.
@@ -87,7 +87,8 @@ impl Scan {
 pub(crate) struct Nodes<'a> {
     pub(crate) surface: &'a ContactSurface,
     pub(crate) positions: &'a [[f64; 3]],
-    pub(crate) velocities: &'a [[f64; 3]],
+    /// The node velocities: a framed body's from its motion when given.
+    pub(crate) velocities: NodeVelocities<'a>,
     pub(crate) reference: Option<&'a [[f64; 3]]>,
     pub(crate) expected: Option<&'a Expected>,
 }
@@ -98,7 +99,7 @@ impl Nodes<'_> {
         let nodes = &self.surface.surface_nodes;
         for k in range {
             let x = self.positions[nodes[k]];
-            let v = self.velocities[nodes[k]];
+            let v = self.velocities.of_surface_node(self.surface, k, x);
             if s.bad.is_none() {
                 if !is_finite(x) {
                     s.bad = Some((k, false));

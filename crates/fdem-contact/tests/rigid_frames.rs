@@ -300,10 +300,10 @@ fn nodes_clear_of_the_walls_are_passed_over_with_the_same_contacts_and_errors() 
     assert_eq!(a.to_string(), b.to_string());
 }
 
-/// The scan takes a body's motion for its nodes' speeds: a node moving too fast for the
-/// depth limit (at the limit's cap) is refused when the scan reads the nodes (no motion, or
-/// a bound that says so) and not when the caller's bound says the body is slow. A caller
-/// must give a true bound.
+/// The scan takes a body's motion for its nodes' speeds: nodes moving too fast for the
+/// depth limit (at the limit's cap) are refused when the scan reads them (no motion, or a
+/// bound that says so; with a motion their speeds are the motion's) and not when the
+/// caller's bound says the bodies are slow. A caller must give a true bound.
 #[test]
 fn the_scan_takes_the_motions_bound_for_the_nodes_speeds() {
     let cluster = Cluster::new(6);
@@ -312,9 +312,13 @@ fn the_scan_takes_the_motions_bound_for_the_nodes_speeds() {
     let x = cluster.positions(0);
     let dt = 1e-6;
     let limit = framed.depth_limit();
-    // One node of body 5 at 0.6 depth limits per step: twice that passes the bound.
-    let mut v = vec![[0.0; 3]; n];
-    v[5 * (n / 8) + 7] = [0.6 * limit / dt, 0.0, 0.0];
+    // Every body moving as one at 0.6 depth limits per step: twice that passes the
+    // bound, while no node moves relative to a face.
+    let fast = [0.6 * limit / dt, 0.0, 0.0];
+    let v = vec![fast; n];
+    let moves = vec![[fast, [0.0; 3], [0.0; 3]]; 8];
+    // Each body's velocity, with its nodes' largest speed times `room` as the bound.
+    let given = |room: f64| Some(motions(&v, room, Some(&moves)));
     let refused = |motions: Option<Vec<RigidMotion>>| {
         let mut model = framed.clone();
         model.set_rigid_poses(0.0, &cluster.poses(0)).unwrap();
@@ -335,8 +339,55 @@ fn the_scan_takes_the_motions_bound_for_the_nodes_speeds() {
         }
     };
     assert!(refused(None));
-    assert!(refused(Some(motions(&v, 1.0, None))));
-    assert!(!refused(Some(motions(&v, 0.5, None))));
+    assert!(refused(given(1.0)));
+    assert!(!refused(given(0.5)));
+}
+
+/// With the motions of its time, an evaluation takes every framed node's velocity from
+/// its body's motion and never reads that node's entry of the velocities (the node's own,
+/// a face corner's, the tunnelling check's, the scan's): with absurd entries the contacts,
+/// forces and wall forces are those of a model given the placed velocities, bit for bit.
+/// A floor rises into the lower bodies (wall contacts), the step is long enough that the
+/// faces' tunnelling check runs, and every other step the motions' speed bounds are
+/// infinite, so that the scan reads the nodes.
+#[test]
+fn with_the_motions_of_its_time_an_evaluation_reads_no_framed_node_velocity() {
+    let cluster = Cluster::new(5);
+    let floor = Wall::plane([0.0, 0.0, -0.0062], [0.0, 0.0, 1.0]).moving([0.0, 0.0, 10.0]);
+    let (mut plain, mut framed, assembly) = models_with(&cluster, vec![floor]);
+    let n = assembly.n_nodes();
+    let absurd = vec![[1e6, -1e6, 1e6]; n];
+    let (mut contacts, mut wall_contacts) = (0, 0);
+    for step in 0..300 {
+        let (x, t) = (cluster.positions(step), step as f64 * 1e-6);
+        let (v, moves) = velocities(&cluster, &x, step);
+        // Twice the fastest node's travel in a step is the margin (2e-4 m): above the
+        // reach (half the margin) that turns the faces' tunnelling check on, below the one
+        // that trips it (half the depth limit, 1e-3 m).
+        let v_max = v.iter().map(|&a| common::norm(a)).fold(0.0, f64::max);
+        let dt = 1e-4 / v_max;
+        framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        // Every other step a speed bound that decides nothing: the scan reads the nodes.
+        let room = if step % 2 == 0 {
+            1.0 + 1e-9
+        } else {
+            f64::INFINITY
+        };
+        let m = motions(&v, room, Some(&moves));
+        framed.set_rigid_motions(t, &m).unwrap();
+        let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        let a = plain.add_forces(&x, &v, t, dt, &mut fa).unwrap();
+        let b = framed.add_forces(&x, &absurd, t, dt, &mut fb).unwrap();
+        assert_eq!(fa, fb, "step {step}");
+        assert_eq!(a.contacts, b.contacts, "step {step}");
+        assert_eq!(a.wall_contacts, b.wall_contacts, "step {step}");
+        assert_eq!(plain.wall_forces(), framed.wall_forces(), "step {step}");
+        assert_eq!(a.stored_energy.to_bits(), b.stored_energy.to_bits());
+        contacts = contacts.max(a.contacts);
+        wall_contacts = wall_contacts.max(a.wall_contacts);
+    }
+    assert!(contacts >= 10, "{contacts} contacts");
+    assert!(wall_contacts >= 10, "{wall_contacts} wall contacts");
 }
 
 #[test]

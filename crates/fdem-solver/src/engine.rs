@@ -4,7 +4,7 @@
 use crate::checkpoint::SimulationCheckpoint;
 use crate::forces::{Constraint, ElasticForces, ForceContribution, NodeView, Powers, StepBound};
 use crate::model::{ConstraintHandle, Handle};
-use crate::rigid::{RigidBodies, RigidState, Spring};
+use crate::rigid::{HalfStepVelocities, RigidBodies, RigidState, Spring};
 use crate::{Body, BodyKind, BodyMotion, Connectivity, ContactForces, NodeState, SolverError};
 use fdem_contact::Counterpart;
 use rayon::prelude::*;
@@ -900,16 +900,23 @@ impl Simulation {
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
         kick_drift_and_reset(&mut self.state, half, dt, &self.chunks);
+        let velocities = self.half_step_velocities();
         let s = &mut self.state;
         self.rigid.kick_drift(
             half,
             dt,
             [&mut s.positions, &mut s.velocities, &mut s.forces],
+            velocities,
         );
         self.rigid_nodes_edited = false;
         let (step, time) = (self.step + 1, self.time + dt);
         self.time = time;
         if let Err(e) = self.add_forces() {
+            if velocities != HalfStepVelocities::All {
+                // The state the error leaves is whole: every node's velocity of its time.
+                let s = &mut self.state;
+                self.rigid.place_velocities(&s.positions, &mut s.velocities);
+            }
             // An inverted element or a refused contact step during the time loop is a
             // step-size problem: report it with the step, time, dt and bound.
             return Err(match e {
@@ -941,6 +948,23 @@ impl Simulation {
             self.check_energy()?;
         }
         Ok(())
+    }
+
+    /// Which rigid bodies' nodes a step gives their half-step velocities: every body's
+    /// when a contribution or constraint may read one of their nodes
+    /// ([`ForceContribution::node_range`]), else those the contact model does not take
+    /// from the bodies' motions.
+    fn half_step_velocities(&self) -> HalfStepVelocities {
+        let contributions = self.parts.contributions.iter().map(|c| c.node_range());
+        let constraints = self.parts.constraints.iter().map(|c| c.node_range());
+        let read = contributions
+            .chain(constraints)
+            .any(|nodes| nodes.is_none_or(|r| self.rigid.holds_any(&r)));
+        if read {
+            HalfStepVelocities::All
+        } else {
+            HalfStepVelocities::Unframed
+        }
     }
 
     /// The energy scale the balance error is measured against: the largest of the initial

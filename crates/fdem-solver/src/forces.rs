@@ -23,7 +23,9 @@ pub struct NodeView<'a> {
     /// Current positions (m).
     pub positions: &'a [[f64; 3]],
     /// Velocities at the evaluation instant (m/s): the half-step velocities of the
-    /// velocity-Verlet update.
+    /// velocity-Verlet update. A rigid body's nodes hold theirs only when a contribution
+    /// or constraint may read them ([`ForceContribution::node_range`]); the contact model
+    /// takes them from the bodies' motions.
     pub velocities: &'a [[f64; 3]],
     /// Lumped masses (kg).
     pub masses: &'a [f64],
@@ -155,6 +157,14 @@ pub trait ForceContribution: Any + Send {
     ) -> Result<Powers, SolverError>;
     /// Energy stored by this contribution (strain energy, springs) in J.
     fn potential_energy(&self, nodes: NodeView<'_>) -> f64;
+    /// The node ids this contribution reads the state of or adds forces to, when they
+    /// lie in one range ([`node_span`] of a list); `None`, the default, when it may touch
+    /// any node. The engine leaves out work no one needs by it: the half-step velocities
+    /// of rigid bodies' nodes are placed only when a contribution or constraint may read
+    /// them.
+    fn node_range(&self) -> Option<Range<usize>> {
+        None
+    }
     /// What this contribution carries from one evaluation to the next (beyond what the
     /// driver sets between steps), as numbers, for a checkpoint
     /// ([`crate::Simulation::checkpoint`]); none by default.
@@ -195,6 +205,22 @@ pub trait Constraint: Any + Send {
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError>;
+    /// As [`ForceContribution::node_range`]: the node ids this constraint reads the state
+    /// of or changes the forces of, when they lie in one range; `None`, the default, when
+    /// it may touch any node.
+    fn node_range(&self) -> Option<Range<usize>> {
+        None
+    }
+}
+
+/// The smallest range of node ids that holds every id of `nodes` (empty for none): what a
+/// contribution or constraint on a list of nodes gives as
+/// [`ForceContribution::node_range`].
+pub fn node_span(nodes: &[usize]) -> Range<usize> {
+    match (nodes.iter().min(), nodes.iter().max()) {
+        (Some(&lo), Some(&hi)) => lo..hi + 1,
+        _ => 0..0,
+    }
 }
 
 /// The work of forces that are not the gradient of a stored energy (a follower pressure,
@@ -465,7 +491,14 @@ impl ElasticForces {
 
 #[cfg(test)]
 mod tests {
-    use super::StepBound;
+    use super::{StepBound, node_span};
+
+    #[test]
+    fn a_node_span_holds_every_id_of_its_list() {
+        assert_eq!(node_span(&[7, 3, 9, 4]), 3..10);
+        assert_eq!(node_span(&[5]), 5..6);
+        assert_eq!(node_span(&[]), 0..0);
+    }
 
     fn bound(dt: f64, source: &str) -> Option<StepBound> {
         Some(StepBound {

@@ -45,7 +45,7 @@ pub use engine::{EnergyReport, Guard, NodesMut, Simulation, TimeStep};
 pub use error::SolverError;
 pub use forces::{
     BodyElements, Constraint, ElasticForces, ElementInput, ForceContribution, NodeView, Powers,
-    StepBound, VerletWork,
+    StepBound, VerletWork, node_span,
 };
 pub use memory::{
     BYTES_BASE, BYTES_PER_ELEMENT, BYTES_PER_NODE, BYTES_PER_SURFACE_NODE, ModelSize, ParticleSize,

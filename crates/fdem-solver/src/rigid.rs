@@ -426,13 +426,19 @@ impl RigidPart {
     }
 
     /// Positions and velocities of the body's nodes (`x`, `v`: its own node range) from
-    /// its pose: `x_i = X + R r_i`, then [`RigidPart::place_velocities`].
+    /// its pose: [`RigidPart::place_positions`], then [`RigidPart::place_velocities`].
     pub(crate) fn place_nodes(&self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) {
+        self.place_positions(x);
+        self.place_velocities(x, v);
+    }
+
+    /// Positions of the body's nodes (`x`: its own node range) from its pose:
+    /// `x_i = X + R r_i`.
+    fn place_positions(&self, x: &mut [[f64; 3]]) {
         let r = quaternion(self.state.orientation);
         for (xi, offset) in x.iter_mut().zip(&self.offsets) {
             *xi = self.state.point_rotated_by(&r, *offset);
         }
-        self.place_velocities(x, v);
     }
 
     /// Velocities of the body's nodes at positions `x` (placed from the current pose):
@@ -653,15 +659,47 @@ impl RigidBodies {
     }
 
     /// First half of a step: half kick with the last force and torque, drift over `dt`,
-    /// nodes placed from the new pose, their forces reset for the step's new ones.
-    pub(crate) fn kick_drift(&mut self, half: f64, dt: f64, nodes: NodeRanges<'_>) {
+    /// nodes placed from the new pose (their velocities as `velocities` says), their
+    /// forces reset for the step's new ones.
+    pub(crate) fn kick_drift(
+        &mut self,
+        half: f64,
+        dt: f64,
+        nodes: NodeRanges<'_>,
+        velocities: HalfStepVelocities,
+    ) {
         with_nodes(&mut self.parts, nodes, 0, &|p, [x, v, f]| {
             p.kick(half);
             p.state.drift(&p.inertia, dt);
-            p.place_nodes(x, v);
+            p.place_positions(x);
+            if velocities == HalfStepVelocities::All || p.template.is_none() {
+                p.place_velocities(x, v);
+            }
             f.fill([0.0; 3]);
             true
         });
+    }
+
+    /// The node velocities of every body from its state (after a step that failed
+    /// having left some out, [`HalfStepVelocities::Unframed`]).
+    pub(crate) fn place_velocities(&self, x: &[[f64; 3]], v: &mut [[f64; 3]]) {
+        for p in &self.parts {
+            let r = p.nodes();
+            p.place_velocities(&x[r.clone()], &mut v[r]);
+        }
+    }
+
+    /// Whether node ids `range` hold a node of a rigid body.
+    pub(crate) fn holds_any(&self, range: &std::ops::Range<usize>) -> bool {
+        if range.is_empty() {
+            return false;
+        }
+        // The first body whose nodes end after the range's start (the bodies' ranges are
+        // increasing and disjoint).
+        let i = self
+            .parts
+            .partition_point(|p| p.first + p.offsets.len() <= range.start);
+        self.parts.get(i).is_some_and(|p| p.first < range.end)
     }
 
     /// Each body's force and torque from its nodes' forces (and its weight).
@@ -688,6 +726,17 @@ impl RigidBodies {
             v.iter().flatten().all(|c| c.is_finite())
         })
     }
+}
+
+/// Which rigid bodies' nodes a step's kick and drift give their half-step velocities.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum HalfStepVelocities {
+    /// Every body's: a force contribution or constraint may read them.
+    All,
+    /// Only those of bodies without a template map: the contact model takes the others'
+    /// from their motions (`ContactModel::set_rigid_motions`), and nothing else reads
+    /// them before the step's end places them all.
+    Unframed,
 }
 
 /// The step the contact network allows the rigid bodies: the smallest over the bodies,
@@ -1235,6 +1284,26 @@ mod tests {
             let bound = 4.0 / (b.dt * b.dt);
             prop_assert!(bound >= exact * (1.0 - 1e-9), "bound {bound} below exact {exact}");
             prop_assert!(bound <= 12.0 * exact, "bound {bound} far above exact {exact}");
+        }
+    }
+
+    /// A range of node ids holds a rigid node when it meets one body's nodes: bodies on
+    /// nodes 2..5 and 8..10 (a gap between them and after them).
+    #[test]
+    fn a_range_holds_a_rigid_node_when_it_meets_a_body() {
+        let on = |body, first, n| {
+            let mut p = part(body, 1.0, [0.1; 3], [0.0; 3]);
+            p.first = first;
+            p.offsets = vec![[0.0; 3]; n];
+            p
+        };
+        let bodies = RigidBodies::new(vec![on(0, 2, 3), on(1, 8, 2)]);
+        let holds = |r: std::ops::Range<usize>| bodies.holds_any(&r);
+        for r in [0..2, 5..8, 10..20, 3..3, 0..0] {
+            assert!(!holds(r.clone()), "{r:?}");
+        }
+        for r in [0..3, 4..5, 4..9, 9..10, 0..20, 7..9] {
+            assert!(holds(r.clone()), "{r:?}");
         }
     }
 

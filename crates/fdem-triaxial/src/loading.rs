@@ -20,7 +20,7 @@ use fdem_core::geometry::{cross, sub};
 use fdem_solver::{
     BodyId, Constraint, ConstraintHandle, ContactSettings, ForceContribution, Guard, Handle,
     ModelBuilder, NodeView, Powers, Scene, SheetBody, Simulation, SimulationSection, SolverError,
-    StepBound, TimeStep, VerletWork, WallId,
+    StepBound, TimeStep, VerletWork, WallId, node_span,
 };
 use rayon::prelude::*;
 
@@ -87,6 +87,8 @@ fn solver_error(phase: &'static str) -> impl Fn(SolverError) -> TriaxialError {
 #[derive(Debug)]
 pub struct RingHold {
     nodes: Vec<usize>,
+    /// [`node_span`] of `nodes`.
+    span: std::ops::Range<usize>,
 }
 
 impl Constraint for RingHold {
@@ -110,6 +112,10 @@ impl Constraint for RingHold {
             ..Powers::default()
         })
     }
+
+    fn node_range(&self) -> Option<std::ops::Range<usize>> {
+        Some(self.span.clone())
+    }
 }
 
 /// Viscous damping of the membrane's horizontal motion, the cell fluid's resistance in
@@ -126,6 +132,8 @@ impl Constraint for RingHold {
 #[derive(Debug)]
 pub struct MembraneDamping {
     nodes: Vec<usize>,
+    /// [`node_span`] of `nodes`.
+    span: std::ops::Range<usize>,
     /// `c A` per node (N s/m).
     linear: Vec<f64>,
     /// Speed above which the limiter acts (m/s).
@@ -136,6 +144,10 @@ pub struct MembraneDamping {
 impl ForceContribution for MembraneDamping {
     fn name(&self) -> &str {
         "membrane damping"
+    }
+
+    fn node_range(&self) -> Option<std::ops::Range<usize>> {
+        Some(self.span.clone())
     }
 
     /// Explicit damping is stable while `(c A + c_lim A) dt / m < 2`; with the limiter at
@@ -280,6 +292,10 @@ impl ForceContribution for PressurisedMembrane {
         self.inner.prepare(nodes)?;
         self.evaluate_areas(nodes);
         Ok(())
+    }
+
+    fn node_range(&self) -> Option<std::ops::Range<usize>> {
+        self.inner.node_range()
     }
 
     fn add_forces(
@@ -437,12 +453,14 @@ fn membrane_damping(spec: &SpecimenSpec, mesh: &MembraneMesh, first: usize) -> M
     let damped: Vec<usize> = (0..mesh.positions.len())
         .filter(|&i| !mesh.is_ring_node(i))
         .collect();
+    let nodes: Vec<usize> = damped.iter().map(|i| i + first).collect();
     MembraneDamping {
         linear: damped
             .iter()
             .map(|&i| spec.membrane.damping * areas[i])
             .collect(),
-        nodes: damped.iter().map(|i| i + first).collect(),
+        span: node_span(&nodes),
+        nodes,
         speed_limit: spec
             .membrane
             .speed_limit
@@ -494,8 +512,10 @@ impl TestModel {
         model.add_contribution(membrane_damping(spec, &mesh, first));
         let global = |ids: &[usize]| ids.iter().map(|i| i + first).collect::<Vec<_>>();
         let (top_ring, bottom_ring) = (global(&mesh.top_ring), global(&mesh.bottom_ring));
+        let ring_nodes: Vec<usize> = bottom_ring.iter().chain(&top_ring).copied().collect();
         let rings = model.add_constraint(RingHold {
-            nodes: bottom_ring.iter().chain(&top_ring).copied().collect(),
+            span: node_span(&ring_nodes),
+            nodes: ring_nodes,
         });
         model.set_time_step(match dt {
             Some(dt) => TimeStep::Fixed(dt),

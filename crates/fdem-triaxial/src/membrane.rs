@@ -882,6 +882,10 @@ impl ForceContribution for MembraneForces {
         "membrane"
     }
 
+    fn node_range(&self) -> Option<std::ops::Range<usize>> {
+        Some(self.first_node..self.first_node + self.n_nodes)
+    }
+
     fn stable_time_step(&self, _masses: &[f64]) -> Option<StepBound> {
         self.step.clone()
     }
