@@ -1644,7 +1644,7 @@ impl ContactModel {
         // A sheet's faces are listed to its listing depth only (at least the sheet's step
         // reach, half the margin): a node crossing a sheet must land within it, where the
         // tunnelling guard watches the faces.
-        if self.sheets.any() && 2.0 * v_max * dt > self.sheet_listing_depth() {
+        if 2.0 * v_max * dt > self.sheet_listing_depth() && self.sheets.any() {
             let limit = (self.margin, TunnellingScale::Margin);
             return Err(fastest("the sheets", limit));
         }

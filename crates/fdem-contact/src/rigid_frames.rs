@@ -147,7 +147,7 @@ impl<'a> NodeVelocities<'a> {
 
     /// The motion body `body` moves with, if it is framed and its motion was given.
     #[inline(always)]
-    pub(crate) fn motion(&self, body: u32) -> Option<&'a RigidMotion> {
+    fn motion(&self, body: u32) -> Option<&'a RigidMotion> {
         self.moving.and_then(|(f, m)| f.motion_of(body, m))
     }
 

@@ -251,28 +251,19 @@ const MAX_CELLS_PER_BOX: i64 = 1 << 12;
 /// and the window reach's allowances for that motion.
 #[derive(Clone, Copy, Debug)]
 struct RefreshReach {
-    enlargement: f64,
-    front: f64,
-    sheet: f64,
+    reaches: Reaches,
     window: WindowReach,
 }
 
 impl RefreshReach {
     fn of(broad: &BroadPhase, skin: f64) -> RefreshReach {
         RefreshReach {
-            enlargement: broad.enlargement + 0.5 * skin,
-            front: broad.front + FRONT_SKINS * 0.5 * skin,
-            sheet: broad.sheet_enlargement + 0.5 * skin,
+            reaches: Reaches {
+                enlargement: broad.enlargement + 0.5 * skin,
+                front: broad.front + FRONT_SKINS * 0.5 * skin,
+                sheet: broad.sheet_enlargement + 0.5 * skin,
+            },
             window: WindowReach::of_refresh(skin, broad.window.depth),
-        }
-    }
-
-    /// The reaches the candidate test takes.
-    fn reaches(&self) -> Reaches {
-        Reaches {
-            enlargement: self.enlargement,
-            front: self.front,
-            sheet: self.sheet,
         }
     }
 }
@@ -362,7 +353,7 @@ impl BroadPhase {
 
     /// The enlargement and the front reach a refresh finds its pairs with (m).
     pub(crate) fn refresh_reaches(&self, skin: f64) -> (f64, f64) {
-        let r = RefreshReach::of(self, skin);
+        let r = RefreshReach::of(self, skin).reaches;
         (r.enlargement, r.front)
     }
 
@@ -425,7 +416,7 @@ impl BroadPhase {
                 positions,
                 surface,
                 bodies: &self.bodies,
-                reaches: reach.reaches(),
+                reaches: reach.reaches,
                 window: reach.window,
             };
             let dirty_framed = (dirty, &mut self.bins);
@@ -504,7 +495,7 @@ impl BroadPhase {
         reach: RefreshReach,
         two_sided: &(impl Fn(u32) -> bool + Sync),
     ) -> Option<Vec<Vec<(u32, Candidate)>>> {
-        let e = reach.enlargement;
+        let e = reach.reaches.enlargement;
         // Each dirty node binned by the box it reaches, so that a triangle looks only at
         // the cells of its own box; each dirty face by its enlarged box.
         let node_boxes: Vec<(u32, [f64; 6])> = dirty_nodes
@@ -603,8 +594,8 @@ fn faces_of_dirty_nodes(
     if grid.is_empty() {
         return Vec::new();
     }
-    let e = reach.enlargement;
-    let reaches = reach.reaches();
+    let e = reach.reaches.enlargement;
+    let reaches = reach.reaches;
     near.par_chunks(TRIANGLE_CHUNK)
         .map(|faces| {
             let mut pairs = Vec::new();
@@ -650,8 +641,8 @@ fn nodes_of_dirty_faces(
     if grid.is_empty() {
         return Vec::new();
     }
-    let e = reach.enlargement;
-    let reaches = reach.reaches();
+    let e = reach.reaches.enlargement;
+    let reaches = reach.reaches;
     near.par_chunks(CHUNK)
         .map(|nodes| {
             let mut pairs = Vec::new();
