@@ -966,7 +966,21 @@ impl ContactModel {
     /// [`ContactError::LengthMismatch`] for another number of poses; `InconsistentSurface`
     /// when no frames were set.
     pub fn set_rigid_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
-        self.frames_for("rigid poses")?.set_poses(time, poses)
+        self.exchange_rigid_poses(time, &mut poses.to_vec())
+    }
+
+    /// [`ContactModel::set_rigid_poses`] without copying them: the model takes the vector's
+    /// contents and leaves its previous poses in `poses` (a driver that gives poses every
+    /// step refills the same two vectors in turn). On an error `poses` is unchanged.
+    ///
+    /// # Errors
+    /// As [`ContactModel::set_rigid_poses`].
+    pub fn exchange_rigid_poses(
+        &mut self,
+        time: f64,
+        poses: &mut Vec<RigidPose>,
+    ) -> Result<(), ContactError> {
+        self.frames_for("rigid poses")?.exchange_poses(time, poses)
     }
 
     /// The rigid frames, for giving them `what`; an error when none were set.
@@ -1001,7 +1015,22 @@ impl ContactModel {
         time: f64,
         motions: &[RigidMotion],
     ) -> Result<(), ContactError> {
-        self.frames_for("rigid motions")?.set_motions(time, motions)
+        self.exchange_rigid_motions(time, &mut motions.to_vec())
+    }
+
+    /// [`ContactModel::set_rigid_motions`] without copying them, as
+    /// [`ContactModel::exchange_rigid_poses`] gives poses: `motions` holds the model's
+    /// previous motions afterwards (unchanged on an error).
+    ///
+    /// # Errors
+    /// As [`ContactModel::set_rigid_motions`].
+    pub fn exchange_rigid_motions(
+        &mut self,
+        time: f64,
+        motions: &mut Vec<RigidMotion>,
+    ) -> Result<(), ContactError> {
+        self.frames_for("rigid motions")?
+            .exchange_motions(time, motions)
     }
 
     /// Whether the last evaluation met the rigid bodies' faces in their templates' frames.

@@ -435,11 +435,16 @@ impl RigidFrames {
         })
     }
 
-    /// The poses at `time`, one per rigid body in the order the frames were given.
-    pub(crate) fn set_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
+    /// The poses at `time`, one per rigid body in the order the frames were given, taken
+    /// from `poses`, which receives the previous ones.
+    pub(crate) fn exchange_poses(
+        &mut self,
+        time: f64,
+        poses: &mut Vec<RigidPose>,
+    ) -> Result<(), ContactError> {
         self.one_per_body("rigid poses", poses.len())?;
         debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
-        self.poses.copy_from_slice(poses);
+        std::mem::swap(&mut self.poses, poses);
         self.time = Some(time);
         Ok(())
     }
@@ -486,15 +491,14 @@ impl RigidFrames {
     }
 
     /// The framed bodies' motions at `time`, one per body in the order the frames were
-    /// given.
-    pub(crate) fn set_motions(
+    /// given, taken from `motions`, which receives the previous ones.
+    pub(crate) fn exchange_motions(
         &mut self,
         time: f64,
-        motions: &[RigidMotion],
+        motions: &mut Vec<RigidMotion>,
     ) -> Result<(), ContactError> {
         self.one_per_body("rigid motions", motions.len())?;
-        self.motions.clear();
-        self.motions.extend_from_slice(motions);
+        std::mem::swap(&mut self.motions, motions);
         self.motions_time = Some(time);
         Ok(())
     }
@@ -982,7 +986,7 @@ mod tests {
             let at = |t: f64| motion.since(&IDENTITY, t).filter(|_| squeezed);
             let (e0, e1) = (at(0.01), at(0.03));
             frames.refresh_references(&[true], e0.as_ref(), true);
-            frames.set_poses(1.0, &[p1]).unwrap();
+            frames.exchange_poses(1.0, &mut vec![p1]).unwrap();
             let bound = frames.drift_bound(0, e1.as_ref()).unwrap();
             let mut largest: f64 = 0.0;
             for (&t, &y0) in template.nodes.iter().zip(&x0) {
@@ -1012,7 +1016,9 @@ mod tests {
         )
         .unwrap();
         frames.reset_references(true);
-        frames.set_poses(1.0, &[shifted_pose(2e-3)]).unwrap();
+        frames
+            .exchange_poses(1.0, &mut vec![shifted_pose(2e-3)])
+            .unwrap();
         assert!((frames.drift_bound(0, None).unwrap() - 2e-3).abs() < 1e-18);
         frames.reset_references(false);
         assert_eq!(frames.drift_bound(0, None), None);

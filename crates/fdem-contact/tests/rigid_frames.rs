@@ -204,12 +204,30 @@ fn frames_give_the_contacts_and_forces_of_the_world_planes_bit_for_bit() {
         let (x, t) = (cluster.positions(step), step as f64 * 1e-6);
         // Node velocities of rigid motions, as a solver places them.
         let (v, moves) = velocities(&cluster, &x, step);
-        framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        if step % 3 == 0 {
+            framed.set_rigid_poses(t, &cluster.poses(step)).unwrap();
+        } else {
+            // Exchanged, not copied: the vector comes back with the poses held before.
+            let mut given = cluster.poses(step);
+            framed.exchange_rigid_poses(t, &mut given).unwrap();
+            assert_eq!(given, cluster.poses(step - 1));
+            // A wrong count is refused and leaves the vector as it was.
+            let mut short = cluster.poses(step)[1..].to_vec();
+            assert!(framed.exchange_rigid_poses(t, &mut short).is_err());
+            assert_eq!(short, cluster.poses(step)[1..]);
+        }
         // With their motions on every other step: the scan need not read their nodes, nor
         // the narrow phase their faces' velocities.
         if step % 2 == 0 {
-            let m = motions(&v, 1.0 + 1e-9, Some(&moves));
-            framed.set_rigid_motions(t, &m).unwrap();
+            let mut m = motions(&v, 1.0 + 1e-9, Some(&moves));
+            if step % 4 == 0 {
+                framed.set_rigid_motions(t, &m).unwrap();
+            } else {
+                framed.exchange_rigid_motions(t, &mut m).unwrap();
+                let (v_before, moves_before) =
+                    velocities(&cluster, &cluster.positions(step - 2), step - 2);
+                assert_eq!(m, motions(&v_before, 1.0 + 1e-9, Some(&moves_before)));
+            }
         }
         let (mut fa, mut fb) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let a = plain.add_forces(&x, &v, t, 1e-6, &mut fa).unwrap();

@@ -585,13 +585,9 @@ impl Simulation {
     /// the safety factor covers it.
     pub fn rigid_network_step(&self) -> Option<StepBound> {
         let springs: Vec<Spring> = self.springs()?.collect();
-        let omega2 = self
+        let (omega2, gamma) = self
             .rigid
-            .network_frequency(&springs, NETWORK_LANCZOS_STEPS)?;
-        let gamma = self
-            .rigid
-            .network_damping(&springs, NETWORK_LANCZOS_STEPS)
-            .unwrap_or(0.0);
+            .network_frequency_and_damping(&springs, NETWORK_LANCZOS_STEPS)?;
         let half_gamma = 0.5 * gamma;
         Some(StepBound {
             dt: 2.0 / ((omega2 + half_gamma * half_gamma).sqrt() + half_gamma),
@@ -834,12 +830,12 @@ impl Simulation {
             self.rigid.poses(&mut self.pose_scratch);
             contact
                 .model_mut()
-                .set_rigid_poses(self.time, &self.pose_scratch)?;
+                .exchange_rigid_poses(self.time, &mut self.pose_scratch)?;
             // Their motions of this time, so the contact's scan need not read their nodes.
             self.rigid.motions(&mut self.motion_scratch);
             contact
                 .model_mut()
-                .set_rigid_motions(self.time, &self.motion_scratch)?;
+                .exchange_rigid_motions(self.time, &mut self.motion_scratch)?;
         }
         let state = &mut self.state;
         let view = NodeView {

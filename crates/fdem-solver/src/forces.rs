@@ -234,10 +234,20 @@ pub fn node_span(nodes: &[usize]) -> Range<usize> {
 /// power, `F(n) . (v(n+3/2) - v(n+1/2)) / 2`, once `v(n+3/2)` is known (the engine
 /// multiplies it by `dt` like every other power), and remembers the new force and
 /// velocity for the next step.
+///
+/// A contribution that computes its forces in [`ForceContribution::prepare`] books them
+/// there too, with [`VerletWork::hold`] and [`VerletWork::held_correction`]: the new pairs
+/// are held, not remembered, until [`VerletWork::commit`] in `add_forces` at the same
+/// time, so a preparation that no `add_forces` uses changes nothing.
 #[derive(Clone, Debug, Default)]
 pub struct VerletWork {
-    previous: Vec<([f64; 3], [f64; 3])>,
+    previous: Vec<ForceAndVelocity>,
+    /// The pairs of a held booking and its time ([`VerletWork::hold`]).
+    held: (Vec<ForceAndVelocity>, Option<f64>),
 }
+
+/// A node's force (N) and velocity (m/s) of one evaluation.
+type ForceAndVelocity = ([f64; 3], [f64; 3]);
 
 impl VerletWork {
     /// Prepares for `n` nodes; the first step after a change of `n` books no correction.
@@ -266,6 +276,7 @@ impl VerletWork {
                 values.len()
             )));
         }
+        self.held.1 = None;
         self.previous = values
             .chunks_exact(6)
             .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
@@ -278,12 +289,41 @@ impl VerletWork {
     /// engine's `P dt` booking: the force of the previous evaluation times the velocity
     /// change since, halved), and remembers `(force, velocity)`.
     pub fn correction(&mut self, k: usize, force: [f64; 3], velocity: [f64; 3]) -> f64 {
-        let (f, v) = self.previous[k];
+        let before = self.previous[k];
         self.previous[k] = (force, velocity);
-        0.5 * (f[0] * (velocity[0] - v[0])
-            + f[1] * (velocity[1] - v[1])
-            + f[2] * (velocity[2] - v[2]))
+        verlet_correction(before, velocity)
     }
+
+    /// Starts a held booking for the evaluation at `time` (after [`VerletWork::ensure`]):
+    /// each node then gets one [`VerletWork::held_correction`], and
+    /// [`VerletWork::commit`] at `time` makes their pairs the remembered ones.
+    pub fn hold(&mut self, time: f64) {
+        self.held
+            .0
+            .resize(self.previous.len(), ([0.0; 3], [0.0; 3]));
+        self.held.1 = Some(time);
+    }
+
+    /// [`VerletWork::correction`] in a held booking: the same value, the pair held for
+    /// [`VerletWork::commit`] instead of remembered now.
+    pub fn held_correction(&mut self, k: usize, force: [f64; 3], velocity: [f64; 3]) -> f64 {
+        self.held.0[k] = (force, velocity);
+        verlet_correction(self.previous[k], velocity)
+    }
+
+    /// Remembers the pairs of the booking held at `time`, if there is one; a booking of
+    /// another time is dropped.
+    pub fn commit(&mut self, time: f64) {
+        if self.held.1.take() == Some(time) {
+            std::mem::swap(&mut self.previous, &mut self.held.0);
+        }
+    }
+}
+
+/// `F_old . (v - v_old) / 2` for the remembered pair `(F_old, v_old)` and the velocity `v`
+/// of this evaluation ([`VerletWork`]).
+fn verlet_correction((f, v): ForceAndVelocity, velocity: [f64; 3]) -> f64 {
+    0.5 * (f[0] * (velocity[0] - v[0]) + f[1] * (velocity[1] - v[1]) + f[2] * (velocity[2] - v[2]))
 }
 
 /// The elements of one body with its node range.
@@ -491,7 +531,42 @@ impl ElasticForces {
 
 #[cfg(test)]
 mod tests {
-    use super::{StepBound, node_span};
+    use super::{StepBound, VerletWork, node_span};
+
+    /// A held booking gives the corrections of the direct one and, once committed, the
+    /// same remembered pairs, bit for bit; a booking that is not committed at its time
+    /// changes nothing.
+    #[test]
+    fn a_held_booking_books_as_the_direct_one() {
+        let pair = |step: usize, k: usize| {
+            let a = |j: usize| ((7 * step + 3 * k + j) as f64 * 0.61).sin();
+            ([a(0), a(1), a(2)], [a(3), a(4), a(5)])
+        };
+        let (mut direct, mut held) = (VerletWork::default(), VerletWork::default());
+        for step in 0..4 {
+            direct.ensure(5);
+            held.ensure(5);
+            let time = step as f64;
+            // A booking for another time, never committed at it: dropped.
+            held.hold(time + 0.5);
+            for k in 0..5 {
+                held.held_correction(k, [1e3; 3], [1e3; 3]);
+            }
+            held.commit(time + 0.25);
+            held.hold(time);
+            for k in 0..5 {
+                let (f, v) = pair(step, k);
+                let a = direct.correction(k, f, v);
+                let b = held.held_correction(k, f, v);
+                assert_eq!(a.to_bits(), b.to_bits(), "step {step}, node {k}");
+            }
+            held.commit(time);
+            let bits = |w: &VerletWork| -> Vec<u64> {
+                w.to_numbers().iter().map(|x| x.to_bits()).collect()
+            };
+            assert_eq!(bits(&direct), bits(&held), "step {step}");
+        }
+    }
 
     #[test]
     fn a_node_span_holds_every_id_of_its_list() {

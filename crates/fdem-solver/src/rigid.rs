@@ -887,31 +887,42 @@ impl RigidBodies {
     /// largest eigenvalue from below, where [`RigidBodies::network_bound`] bounds it from
     /// above: the pair says how much the bound gives away. `None` without rigid springs.
     pub(crate) fn network_frequency(&self, springs: &[Spring], iterations: usize) -> Option<f64> {
-        self.network_eigenvalue(springs, iterations, |s| s.stiffness)
+        let (network, scales) = self.network(springs)?;
+        Some(network.largest(&scales, Coefficient::Stiffness, iterations))
     }
 
     /// The same estimate for the dashpots: the largest eigenvalue of `M^-1/2 C M^-1/2` (1/s),
     /// which bounds `2 zeta omega` of every mode.
+    #[cfg(test)]
     pub(crate) fn network_damping(&self, springs: &[Spring], iterations: usize) -> Option<f64> {
-        self.network_eigenvalue(springs, iterations, |s| s.dashpot)
+        let (network, scales) = self.network(springs)?;
+        Some(network.largest(&scales, Coefficient::Dashpot, iterations))
     }
 
-    /// The largest Ritz value of `iterations` Lanczos steps on `M^-1/2 A M^-1/2`, `A`
-    /// assembled from the springs with coefficient `coefficient` (N/m or N s/m).
-    fn network_eigenvalue(
+    /// Both: [`RigidBodies::network_frequency`] and [`RigidBodies::network_damping`]
+    /// (`(omega^2, gamma)`), from one network, the two Lanczos runs side by side. Each run
+    /// is the serial estimate's, so the values are the same bits as the two calls'.
+    pub(crate) fn network_frequency_and_damping(
         &self,
         springs: &[Spring],
         iterations: usize,
-        coefficient: impl Fn(&Spring) -> f64,
-    ) -> Option<f64> {
-        let n = 6 * self.parts.len();
-        if n == 0 || !springs.iter().any(|s| self.part_of(s.body).is_some()) {
+    ) -> Option<(f64, f64)> {
+        let (network, scales) = self.network(springs)?;
+        Some(rayon::join(
+            || network.largest(&scales, Coefficient::Stiffness, iterations),
+            || network.largest(&scales, Coefficient::Dashpot, iterations),
+        ))
+    }
+
+    /// The springs' network over the rigid bodies, and per body `1/sqrt(m)` and the
+    /// world-frame `I^-1/2` (the mass weighting); `None` without a spring on a rigid body.
+    fn network(&self, springs: &[Spring]) -> Option<(Network, Vec<MassScale>)> {
+        use rayon::prelude::*;
+        if self.parts.is_empty() || !springs.iter().any(|s| self.part_of(s.body).is_some()) {
             return None;
         }
-        // Per body: 1/sqrt(m) and the world-frame I^-1/2.
-        let scales: Vec<(f64, Matrix3<f64>)> = self
-            .parts
-            .iter()
+        let scales = (self.parts.par_iter())
+            .with_min_len(SERIAL_BODIES)
             .map(|p| {
                 let r = quaternion(p.state.orientation).to_rotation_matrix();
                 let d = Matrix3::from_diagonal(&Vector3::from(
@@ -923,9 +934,7 @@ impl RigidBodies {
                 )
             })
             .collect();
-        let mut network = Network::new(self, springs, &coefficient);
-        let apply = |x: &[f64], y: &mut [f64]| network.apply(&scales, x, y);
-        Some(lanczos_largest(n, iterations, apply))
+        Some((Network::new(self, springs), scales))
     }
 
     /// The index in `parts` of rigid body `body`, if it is one.
@@ -987,11 +996,23 @@ fn lanczos_largest(n: usize, iterations: usize, mut apply: impl FnMut(&[f64], &m
 /// operator's forces are then summed body by body, in parallel, in the order a serial pass
 /// over the springs adds them, so the estimate has the same bits.
 struct Network {
-    /// Per spring, its two ends and its coefficient.
-    springs: Vec<(SpringEnds, f64)>,
+    /// Per spring, its two ends.
+    ends: Vec<SpringEnds>,
+    /// Per spring, its stiffness (N/m) and its dashpot (N s/m).
+    coefficients: Vec<[f64; 2]>,
     /// Per body, the springs acting on it, in spring order.
     acting: Rows<Acting>,
-    /// The operator's scratch: per body its velocities, per spring its force.
+}
+
+/// Which of a spring's coefficients a network operator is assembled from.
+#[derive(Clone, Copy)]
+enum Coefficient {
+    Stiffness = 0,
+    Dashpot = 1,
+}
+
+/// A network operator's scratch: per body its velocities, per spring its force.
+struct NetworkScratch {
     velocities: Vec<(Vector3<f64>, Vector3<f64>)>,
     forces: Vec<Vector3<f64>>,
 }
@@ -1006,25 +1027,25 @@ struct Acting {
 }
 
 impl Network {
-    fn new(bodies: &RigidBodies, springs: &[Spring], coefficient: &dyn Fn(&Spring) -> f64) -> Self {
+    fn new(bodies: &RigidBodies, springs: &[Spring]) -> Self {
+        use rayon::prelude::*;
         let arm = |j: usize, point: [f64; 3]| {
             let c = bodies.parts[j].state.position;
             Vector3::new(point[0] - c[0], point[1] - c[1], point[2] - c[2])
         };
-        let resolved: Vec<(SpringEnds, f64)> = springs
-            .iter()
+        let ends: Vec<SpringEnds> = (springs.par_iter())
+            .with_min_len(SPRINGS_PER_TASK)
             .map(|s| {
                 let a = bodies.part_of(s.body).map(|j| (j, arm(j, s.point)));
                 let b = s
                     .other
                     .and_then(|(body, point)| bodies.part_of(body).map(|j| (j, arm(j, point))));
-                ([a, b], coefficient(s))
+                [a, b]
             })
             .collect();
         // Per body, the (spring, end) pairs acting on it, springs in order.
-        let n_bodies = bodies.parts.len();
-        let pairs = (resolved.iter().enumerate())
-            .flat_map(|(i, (ends, _))| {
+        let pairs = (ends.iter().enumerate())
+            .flat_map(|(i, ends)| {
                 (ends.iter().enumerate()).filter_map(move |(end, x)| {
                     x.map(|(j, arm)| {
                         let own = end == 0;
@@ -1040,24 +1061,42 @@ impl Network {
                 })
             })
             .collect();
-        let acting = Rows::by_key(n_bodies, pairs);
         Network {
-            velocities: vec![(Vector3::zeros(), Vector3::zeros()); n_bodies],
-            forces: vec![Vector3::zeros(); resolved.len()],
-            springs: resolved,
-            acting,
+            acting: Rows::by_key(bodies.parts.len(), pairs),
+            coefficients: springs.iter().map(|s| [s.stiffness, s.dashpot]).collect(),
+            ends,
         }
+    }
+
+    /// The largest Ritz value of `iterations` Lanczos steps on `M^-1/2 A M^-1/2`, `A`
+    /// assembled from the springs' `coefficient`.
+    fn largest(&self, scales: &[MassScale], coefficient: Coefficient, iterations: usize) -> f64 {
+        let mut scratch = NetworkScratch {
+            velocities: vec![(Vector3::zeros(), Vector3::zeros()); scales.len()],
+            forces: vec![Vector3::zeros(); self.ends.len()],
+        };
+        let apply = |x: &[f64], y: &mut [f64]| {
+            self.apply(coefficient, (scales, &mut scratch), x, y);
+        };
+        lanczos_largest(6 * scales.len(), iterations, apply)
     }
 
     /// `y = M^-1/2 A M^-1/2 x` over the bodies' six degrees of freedom (`scales`: per
     /// body `1 / sqrt(m)` and the world-frame `I^-1/2`): the bodies' velocities, each
     /// spring's force from the stretch rate of its ends, then per body the sum of its
     /// springs' forces and moments.
-    fn apply(&mut self, scales: &[(f64, Matrix3<f64>)], x: &[f64], y: &mut [f64]) {
+    fn apply(
+        &self,
+        coefficient: Coefficient,
+        (scales, scratch): (&[MassScale], &mut NetworkScratch),
+        x: &[f64],
+        y: &mut [f64],
+    ) {
         use rayon::prelude::*;
         // Velocities of the bodies from the mass-weighted coordinates, once per body (each
         // spring end reads its body's).
-        self.velocities
+        scratch
+            .velocities
             .par_iter_mut()
             .with_min_len(SPRINGS_PER_TASK)
             .zip(scales)
@@ -1067,19 +1106,22 @@ impl Network {
                 let ang = w * Vector3::new(x[6 * j + 3], x[6 * j + 4], x[6 * j + 5]);
                 *v = (lin, ang);
             });
-        let velocities = &self.velocities;
+        let velocities = &scratch.velocities;
         let rate = |end: Option<(usize, Vector3<f64>)>| {
             end.map_or(Vector3::zeros(), |(j, r)| {
                 let (lin, ang) = velocities[j];
                 lin + ang.cross(&r)
             })
         };
-        self.forces
+        let k = coefficient as usize;
+        scratch
+            .forces
             .par_iter_mut()
             .with_min_len(SPRINGS_PER_TASK)
-            .zip(&self.springs)
-            .for_each(|(f, &([a, b], c))| *f = (rate(a) - rate(b)) * c);
-        let (forces, acting) = (&self.forces, &self.acting);
+            .zip(&self.ends)
+            .zip(&self.coefficients)
+            .for_each(|((f, &[a, b]), c)| *f = (rate(a) - rate(b)) * c[k]);
+        let (forces, acting) = (&scratch.forces, &self.acting);
         y.par_chunks_mut(6)
             .with_min_len(SERIAL_BODIES)
             .enumerate()
@@ -1101,6 +1143,9 @@ impl Network {
             });
     }
 }
+
+/// A body's mass weighting: `1 / sqrt(m)` and the world-frame `I^-1/2`.
+type MassScale = (f64, Matrix3<f64>);
 
 /// A spring's two ends: the body's index and the arm from its centre to the spring's point
 /// (`None`: a wall or a body that is not rigid).
@@ -1413,5 +1458,12 @@ mod tests {
             .expect("rigid springs");
         let exact = exact_omega2(&bodies, &as_springs);
         assert!((gamma - exact).abs() <= 1e-9 * exact, "{gamma} vs {exact}");
+        // Both runs side by side on one network give the two runs' values, bit for bit.
+        let omega2 = bodies.network_frequency(&dashpots, 18);
+        let both = bodies.network_frequency_and_damping(&dashpots, 18);
+        assert_eq!(
+            both.map(|(w, g)| (w.to_bits(), g.to_bits())),
+            omega2.map(|w| (w.to_bits(), gamma.to_bits()))
+        );
     }
 }

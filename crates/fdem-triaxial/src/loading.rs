@@ -139,6 +139,36 @@ pub struct MembraneDamping {
     /// Speed above which the limiter acts (m/s).
     speed_limit: f64,
     work: VerletWork,
+    /// Per node its force's x and y (N), and their power with the Verlet correction, at
+    /// the state of time `.2` ([`ForceContribution::prepare`]; scratch).
+    prepared: (Vec<[f64; 2]>, f64, Option<f64>),
+}
+
+impl MembraneDamping {
+    /// The damping forces at `nodes` into `prepared.0`, and their power, booked with the
+    /// Verlet correction held for [`VerletWork::commit`] at `nodes.time`.
+    fn evaluate(&mut self, nodes: NodeView<'_>) -> f64 {
+        self.work.ensure(self.nodes.len());
+        self.work.hold(nodes.time);
+        let out = &mut self.prepared.0;
+        out.resize(self.nodes.len(), [0.0; 2]);
+        let mut power = 0.0;
+        for (k, &i) in self.nodes.iter().enumerate() {
+            let v = nodes.velocities[i];
+            let speed = v[0].hypot(v[1]);
+            let mut c = self.linear[k];
+            if speed > self.speed_limit {
+                let limiter = 0.5 * nodes.masses[i] / nodes.dt;
+                c += limiter * (speed - self.speed_limit) / speed;
+            }
+            let f = [-c * v[0], -c * v[1], 0.0];
+            // The correction is work done on the nodes: dissipation is its negative.
+            power -= self.work.held_correction(k, f, [v[0], v[1], 0.0]);
+            out[k] = [f[0], f[1]];
+            power += c * speed * speed;
+        }
+        power
+    }
 }
 
 impl ForceContribution for MembraneDamping {
@@ -165,27 +195,27 @@ impl ForceContribution for MembraneDamping {
             })
     }
 
+    /// The forces and their power, beside the contact detection: `add_forces` only adds
+    /// them.
+    fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
+        self.prepared.1 = self.evaluate(nodes);
+        self.prepared.2 = Some(nodes.time);
+        Ok(())
+    }
+
     fn add_forces(
         &mut self,
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
-        self.work.ensure(self.nodes.len());
-        let mut power = 0.0;
-        for (k, &i) in self.nodes.iter().enumerate() {
-            let v = nodes.velocities[i];
-            let speed = v[0].hypot(v[1]);
-            let mut c = self.linear[k];
-            if speed > self.speed_limit {
-                let limiter = 0.5 * nodes.masses[i] / nodes.dt;
-                c += limiter * (speed - self.speed_limit) / speed;
-            }
-            let f = [-c * v[0], -c * v[1], 0.0];
-            // The correction is work done on the nodes: dissipation is its negative.
-            power -= self.work.correction(k, f, [v[0], v[1], 0.0]);
+        let power = match self.prepared.2.take() {
+            Some(time) if time == nodes.time => self.prepared.1,
+            _ => self.evaluate(nodes),
+        };
+        self.work.commit(nodes.time);
+        for (&i, f) in self.nodes.iter().zip(&self.prepared.0) {
             forces[i][0] += f[0];
             forces[i][1] += f[1];
-            power += c * speed * speed;
         }
         Ok(Powers {
             damping: power,
@@ -202,6 +232,7 @@ impl ForceContribution for MembraneDamping {
     }
 
     fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
+        self.prepared.2 = None;
         self.work.restore_numbers(values)
     }
 }
@@ -222,6 +253,9 @@ pub struct PressurisedMembrane {
     /// `(b - a) x (c - a)` of every triangle at the state of time `.1`, from
     /// [`ForceContribution::prepare`] (scratch).
     areas: (Vec<[f64; 3]>, Option<f64>),
+    /// The pressure's Verlet correction (W) at the state of time `.1`, from
+    /// [`ForceContribution::prepare`] ([`PressurisedMembrane::corrections`]).
+    correction: (f64, Option<f64>),
 }
 
 impl PressurisedMembrane {
@@ -233,6 +267,7 @@ impl PressurisedMembrane {
             work: VerletWork::default(),
             scratch: Vec::new(),
             areas: (Vec::new(), None),
+            correction: (0.0, None),
         }
     }
 
@@ -256,6 +291,23 @@ impl PressurisedMembrane {
                 *area = cross(sub(b, a), sub(c, a));
             });
         self.areas = (out, Some(nodes.time));
+    }
+
+    /// The pressure forces at `nodes` ([`PressurisedMembrane::pressure_forces`]) and the
+    /// Verlet correction of their work (W), summed node by node, held for
+    /// [`VerletWork::commit`] at `nodes.time`.
+    fn corrections(&mut self, nodes: NodeView<'_>) -> f64 {
+        self.pressure_forces(nodes);
+        let first = self.inner.first_node();
+        self.work.ensure(self.scratch.len());
+        self.work.hold(nodes.time);
+        let mut correction = 0.0;
+        for (j, f) in self.scratch.iter().enumerate() {
+            correction += self
+                .work
+                .held_correction(j, *f, nodes.velocities[j + first]);
+        }
+        correction
     }
 
     /// The pressure forces alone at `nodes`: the membrane adds `p a_in / 3` to each corner,
@@ -288,9 +340,11 @@ impl ForceContribution for PressurisedMembrane {
         self.inner.stable_time_step(masses)
     }
 
+    /// The membrane's corner forces and the pressure's Verlet correction, beside the
+    /// contact detection.
     fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
         self.inner.prepare(nodes)?;
-        self.evaluate_areas(nodes);
+        self.correction = (self.corrections(nodes), Some(nodes.time));
         Ok(())
     }
 
@@ -303,14 +357,16 @@ impl ForceContribution for PressurisedMembrane {
         nodes: NodeView<'_>,
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
+        // A preparation holds while the membrane's does (a new pressure drops both).
+        let prepared =
+            self.correction.1.take() == Some(nodes.time) && self.inner.prepared_at(nodes.time);
         let mut powers = self.inner.add_forces(nodes, forces)?;
-        self.pressure_forces(nodes);
-        let first = self.inner.first_node();
-        self.work.ensure(self.scratch.len());
-        let mut correction = 0.0;
-        for (j, f) in self.scratch.iter().enumerate() {
-            correction += self.work.correction(j, *f, nodes.velocities[j + first]);
-        }
+        let correction = if prepared {
+            self.correction.0
+        } else {
+            self.corrections(nodes)
+        };
+        self.work.commit(nodes.time);
         powers.external += correction;
         Ok(powers)
     }
@@ -325,6 +381,7 @@ impl ForceContribution for PressurisedMembrane {
 
     fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
         self.areas.1 = None;
+        self.correction.1 = None;
         self.inner.forget_preparation();
         self.work.restore_numbers(values)
     }
@@ -466,6 +523,7 @@ fn membrane_damping(spec: &SpecimenSpec, mesh: &MembraneMesh, first: usize) -> M
             .speed_limit
             .unwrap_or_else(|| spec.loading_velocity()),
         work: VerletWork::default(),
+        prepared: (Vec::new(), 0.0, None),
     }
 }
 
@@ -745,6 +803,140 @@ impl TestModel {
 mod tests {
     use super::*;
     use crate::membrane::NODES_PER_TASK;
+
+    fn test_membrane_spec() -> MembraneSpec {
+        MembraneSpec {
+            radius: 0.05,
+            bottom: 0.1,
+            top: 0.3,
+            divisions_around: 40,
+            divisions_along: 30,
+            thickness: 0.002,
+            youngs_modulus: 1e6,
+            poisson_ratio: 0.4,
+            density: 1100.0,
+            added_mass: 0.0,
+        }
+    }
+
+    /// The state of step `step`: every node moved and moving a little differently.
+    fn state_of(base: &[[f64; 3]], step: usize) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        let a = |i: usize, k: usize, s: f64| ((3 * i + k) as f64 * 0.37 + s).sin();
+        let s = step as f64;
+        let x = (base.iter().enumerate())
+            .map(|(i, x)| std::array::from_fn(|k| x[k] + 1e-3 * a(i, k, s)))
+            .collect();
+        let v = (0..base.len())
+            .map(|i| std::array::from_fn(|k| 0.2 * a(i, k, 2.0 * s + 1.0)))
+            .collect();
+        (x, v)
+    }
+
+    /// Steps `contribution` through four states, with a preparation before each
+    /// `add_forces` when `prepare` says so (at the third state, a preparation for another
+    /// state and time instead, which must not be used); returns every force, power and
+    /// checkpoint number as bits.
+    fn run_steps(
+        contribution: &mut dyn ForceContribution,
+        base: &[[f64; 3]],
+        prepare: bool,
+    ) -> Vec<u64> {
+        let masses = vec![0.01; base.len()];
+        let mut out = Vec::new();
+        for step in 0..4 {
+            let (x, v) = state_of(base, step);
+            let time = step as f64 * 1e-6;
+            let view = |time: f64| NodeView {
+                positions: &x,
+                velocities: &v,
+                masses: &masses,
+                time,
+                dt: 1e-6,
+            };
+            if prepare && step == 2 {
+                let (x2, v2) = state_of(base, 7);
+                let other = NodeView {
+                    positions: &x2,
+                    velocities: &v2,
+                    ..view(time + 0.5)
+                };
+                contribution.prepare(other).unwrap();
+            } else if prepare {
+                contribution.prepare(view(time)).unwrap();
+            }
+            let mut forces = vec![[0.5; 3]; base.len()];
+            let p = contribution.add_forces(view(time), &mut forces).unwrap();
+            out.extend(forces.iter().flatten().map(|f| f.to_bits()));
+            out.extend([p.external, p.damping, p.friction_energy].map(f64::to_bits));
+            out.extend(contribution.checkpoint().iter().map(|c| c.to_bits()));
+        }
+        out
+    }
+
+    /// The membrane's damping and its pressurised sheet give the same forces, powers
+    /// and booked Verlet work, bit for bit, whether their `prepare` ran before each
+    /// `add_forces` or not; a preparation for another state is not used.
+    #[test]
+    fn prepared_membrane_contributions_equal_those_computed_on_the_spot() {
+        let spec = test_membrane_spec();
+        let mesh = membrane_mesh(&spec).unwrap();
+        let first = 2;
+        let base: Vec<[f64; 3]> = [[0.0; 3]; 2]
+            .into_iter()
+            .chain(mesh.positions.clone())
+            .collect();
+        let pressurised =
+            || PressurisedMembrane::new(MembraneForces::new(&mesh, &spec, first, 2e5).unwrap());
+        let nodes: Vec<usize> = (first..base.len()).collect();
+        let damping = || MembraneDamping {
+            linear: nodes.iter().map(|&i| 0.3 + 0.01 * (i % 7) as f64).collect(),
+            span: node_span(&nodes),
+            nodes: nodes.clone(),
+            // Some nodes above the limit, some below.
+            speed_limit: 0.15,
+            work: VerletWork::default(),
+            prepared: (Vec::new(), 0.0, None),
+        };
+        let spot = run_steps(&mut pressurised(), &base, false);
+        assert_eq!(spot, run_steps(&mut pressurised(), &base, true));
+        let spot = run_steps(&mut damping(), &base, false);
+        assert_eq!(spot, run_steps(&mut damping(), &base, true));
+    }
+
+    /// A new pressure after a preparation drops it: the forces and the booking are those
+    /// of the new pressure.
+    #[test]
+    fn a_pressure_set_after_a_preparation_is_the_one_booked() {
+        let spec = test_membrane_spec();
+        let mesh = membrane_mesh(&spec).unwrap();
+        let make = || PressurisedMembrane::new(MembraneForces::new(&mesh, &spec, 0, 2e5).unwrap());
+        let (x, v) = state_of(&mesh.positions, 1);
+        let masses = vec![0.01; x.len()];
+        let view = NodeView {
+            positions: &x,
+            velocities: &v,
+            masses: &masses,
+            time: 1e-6,
+            dt: 1e-6,
+        };
+        let run = |membrane: &mut PressurisedMembrane, prepare: bool| {
+            // A first step books forces for the correction of the second.
+            let mut forces = vec![[0.0; 3]; x.len()];
+            membrane
+                .add_forces(NodeView { time: 0.0, ..view }, &mut forces)
+                .unwrap();
+            if prepare {
+                membrane.prepare(view).unwrap();
+            }
+            membrane.inner.set_pressure(3e5);
+            let p = membrane.add_forces(view, &mut forces).unwrap();
+            let mut bits: Vec<u64> = forces.iter().flatten().map(|f| f.to_bits()).collect();
+            bits.push(p.external.to_bits());
+            bits.extend(membrane.checkpoint().iter().map(|c| c.to_bits()));
+            bits
+        };
+        assert_eq!(run(&mut make(), false), run(&mut make(), true));
+    }
 
     /// The pressure forces of the work booking, summed node by node in parallel tasks,
     /// have the bits of a serial pass over the triangles in order.

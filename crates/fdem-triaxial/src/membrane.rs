@@ -373,6 +373,8 @@ pub struct MembraneForces {
     /// Each triangle's forces on its corners at the state of time `.1`, computed by
     /// [`ForceContribution::prepare`] for the next `add_forces` at that time (scratch).
     prepared: (Vec<CornerForces>, Option<f64>),
+    /// The pressure's power at that state ([`MembraneForces::pressure_power`]).
+    prepared_power: f64,
     /// Per node, the triangles it is a corner of.
     incidence: Incidence,
 }
@@ -528,6 +530,7 @@ impl MembraneForces {
             g,
             step,
             prepared: (Vec::new(), None),
+            prepared_power: 0.0,
             incidence: Incidence::new(&mesh.triangles, n_nodes),
         })
     }
@@ -543,6 +546,11 @@ impl MembraneForces {
     /// the state it was made for is gone (a restored checkpoint).
     pub(crate) fn forget_preparation(&mut self) {
         self.prepared.1 = None;
+    }
+
+    /// Whether a preparation for the state of `time` waits for `add_forces`.
+    pub(crate) fn prepared_at(&self, time: f64) -> bool {
+        self.prepared.1 == Some(time)
     }
     /// The confining pressure (Pa).
     pub fn pressure(&self) -> f64 {
@@ -589,6 +597,20 @@ impl MembraneForces {
             )));
         }
         Ok(())
+    }
+
+    /// The pressure's power at `velocities` from the corner forces of the last
+    /// [`MembraneForces::evaluate_corner_forces`], serial in element order (one order of
+    /// the sum).
+    fn pressure_power(&self, velocities: &[V3]) -> f64 {
+        let f0 = self.first_node;
+        let mut power = 0.0;
+        for (el, cf) in self.elements.iter().zip(&self.prepared.0) {
+            for &i in &el.nodes {
+                power += dot(cf.pressure, velocities[f0 + i]);
+            }
+        }
+        power
     }
 
     /// Every triangle's forces on its corners at `nodes`, in parallel over triangles (each
@@ -893,6 +915,7 @@ impl ForceContribution for MembraneForces {
     fn prepare(&mut self, nodes: NodeView<'_>) -> Result<(), SolverError> {
         self.check_state(&[nodes.positions.len(), nodes.velocities.len()])?;
         self.evaluate_corner_forces(nodes);
+        self.prepared_power = self.pressure_power(nodes.velocities);
         Ok(())
     }
 
@@ -902,9 +925,12 @@ impl ForceContribution for MembraneForces {
         forces: &mut [[f64; 3]],
     ) -> Result<Powers, SolverError> {
         self.check_state(&[nodes.positions.len(), nodes.velocities.len(), forces.len()])?;
-        if self.prepared.1 != Some(nodes.time) {
+        let power = if self.prepared_at(nodes.time) {
+            self.prepared_power
+        } else {
             self.evaluate_corner_forces(nodes);
-        }
+            self.pressure_power(nodes.velocities)
+        };
         self.prepared.1 = None;
         // Node by node, each in element order: the additions into each node's force keep
         // one order.
@@ -917,13 +943,6 @@ impl ForceContribution for MembraneForces {
                 *f = add(*f, add(cf.elastic[corner as usize], cf.pressure));
             }
         });
-        // The pressure's power, serial in element order (one order of the sum).
-        let mut power = 0.0;
-        for (el, cf) in self.elements.iter().zip(prepared) {
-            for &i in &el.nodes {
-                power += dot(cf.pressure, nodes.velocities[f0 + i]);
-            }
-        }
         Ok(Powers {
             external: power,
             ..Powers::default()

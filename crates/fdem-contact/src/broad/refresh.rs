@@ -185,9 +185,12 @@ impl LocalGrid {
     }
 
     /// Per body, whether its box (`boxes`) overlaps a cell that holds an item: the bodies
-    /// whose faces or nodes can meet the items at all.
+    /// whose faces or nodes can meet the items at all (in parallel over the bodies).
     fn near_bodies(&self, boxes: &[[f64; 6]]) -> Vec<bool> {
-        boxes.iter().map(|bx| self.holds_items_within(bx)).collect()
+        (boxes.par_iter())
+            .with_min_len(BOXES_PER_TASK)
+            .map(|bx| self.holds_items_within(bx))
+            .collect()
     }
 }
 
@@ -245,6 +248,11 @@ const MAX_CELLS: i64 = 1 << 24;
 /// ... or when one box overlaps more cells than this; a face at a full build overlaps at most about 10^3 (the cell size is
 /// at least an eighth of the largest enlarged face box).
 const MAX_CELLS_PER_BOX: i64 = 1 << 12;
+
+/// Bodies per parallel task of [`LocalGrid::near_bodies`]: a few cell lookups each, so a
+/// task of fewer would cost more to hand over than to do (a choice, not a measured
+/// break-even).
+const BOXES_PER_TASK: usize = 1024;
 
 /// The reaches of a refresh: the last full build's enlargement and front reach, each grown
 /// by what the extra half skin of relative motion adds (see the module documentation),
