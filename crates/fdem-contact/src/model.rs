@@ -1864,6 +1864,7 @@ impl ContactModel {
         self.chunks
             .par_iter_mut()
             .enumerate()
+            .with_max_len(NARROW_CHUNKS_PER_TASK)
             .for_each(|(chunk, scratch)| ctx.run_chunk(chunk, scratch));
         match self.chunks.iter_mut().find_map(|c| c.error.take()) {
             Some(err) => Err(err),
@@ -1912,6 +1913,13 @@ impl ContactModel {
         self.masses.get(k).copied()
     }
 }
+
+/// At most this many chunks of the narrow phase per task of the pool. Without a cap
+/// rayon's adaptive split stops splitting a few levels down, so a thread that has run out
+/// of chunks (the one that started first: the other was preparing the force
+/// contributions) finds no task to take while the other works through a run of hundreds.
+/// Each chunk writes only its own scratch, so the split changes no result.
+const NARROW_CHUNKS_PER_TASK: usize = 4;
 
 /// Contacts from which [`spread_forces`] splits the nodes among the pool's threads. Small
 /// scenes keep one thread, so that a short spread does not wake another; the value is a
