@@ -966,7 +966,7 @@ impl ContactModel {
     /// [`ContactError::LengthMismatch`] for another number of poses; `InconsistentSurface`
     /// when no frames were set.
     pub fn set_rigid_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
-        self.exchange_rigid_poses(time, &mut poses.to_vec())
+        self.frames_for("rigid poses")?.set_poses(time, poses)
     }
 
     /// [`ContactModel::set_rigid_poses`] without copying them: the model takes the vector's
@@ -1015,7 +1015,7 @@ impl ContactModel {
         time: f64,
         motions: &[RigidMotion],
     ) -> Result<(), ContactError> {
-        self.exchange_rigid_motions(time, &mut motions.to_vec())
+        self.frames_for("rigid motions")?.set_motions(time, motions)
     }
 
     /// [`ContactModel::set_rigid_motions`] without copying them, as

@@ -435,17 +435,31 @@ impl RigidFrames {
         })
     }
 
-    /// The poses at `time`, one per rigid body in the order the frames were given, taken
-    /// from `poses`, which receives the previous ones.
+    /// The poses at `time`, one per rigid body in the order the frames were given (copied
+    /// into the frames' own vector).
+    pub(crate) fn set_poses(&mut self, time: f64, poses: &[RigidPose]) -> Result<(), ContactError> {
+        self.check_poses(poses)?;
+        self.poses.copy_from_slice(poses);
+        self.time = Some(time);
+        Ok(())
+    }
+
+    /// [`RigidFrames::set_poses`] taken from `poses`, which receives the previous ones.
     pub(crate) fn exchange_poses(
         &mut self,
         time: f64,
         poses: &mut Vec<RigidPose>,
     ) -> Result<(), ContactError> {
-        self.one_per_body("rigid poses", poses.len())?;
-        debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
+        self.check_poses(poses)?;
         std::mem::swap(&mut self.poses, poses);
         self.time = Some(time);
+        Ok(())
+    }
+
+    /// Refuses poses of another count than one per framed body.
+    fn check_poses(&self, poses: &[RigidPose]) -> Result<(), ContactError> {
+        self.one_per_body("rigid poses", poses.len())?;
+        debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
         Ok(())
     }
 
@@ -491,7 +505,20 @@ impl RigidFrames {
     }
 
     /// The framed bodies' motions at `time`, one per body in the order the frames were
-    /// given, taken from `motions`, which receives the previous ones.
+    /// given (copied into the frames' own vector).
+    pub(crate) fn set_motions(
+        &mut self,
+        time: f64,
+        motions: &[RigidMotion],
+    ) -> Result<(), ContactError> {
+        self.one_per_body("rigid motions", motions.len())?;
+        self.motions.clear();
+        self.motions.extend_from_slice(motions);
+        self.motions_time = Some(time);
+        Ok(())
+    }
+
+    /// [`RigidFrames::set_motions`] taken from `motions`, which receives the previous ones.
     pub(crate) fn exchange_motions(
         &mut self,
         time: f64,
@@ -986,7 +1013,7 @@ mod tests {
             let at = |t: f64| motion.since(&IDENTITY, t).filter(|_| squeezed);
             let (e0, e1) = (at(0.01), at(0.03));
             frames.refresh_references(&[true], e0.as_ref(), true);
-            frames.exchange_poses(1.0, &mut vec![p1]).unwrap();
+            frames.set_poses(1.0, &[p1]).unwrap();
             let bound = frames.drift_bound(0, e1.as_ref()).unwrap();
             let mut largest: f64 = 0.0;
             for (&t, &y0) in template.nodes.iter().zip(&x0) {
@@ -1016,9 +1043,7 @@ mod tests {
         )
         .unwrap();
         frames.reset_references(true);
-        frames
-            .exchange_poses(1.0, &mut vec![shifted_pose(2e-3)])
-            .unwrap();
+        frames.set_poses(1.0, &[shifted_pose(2e-3)]).unwrap();
         assert!((frames.drift_bound(0, None).unwrap() - 2e-3).abs() < 1e-18);
         frames.reset_references(false);
         assert_eq!(frames.drift_bound(0, None), None);
