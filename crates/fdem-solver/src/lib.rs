@@ -31,6 +31,7 @@ mod rigid;
 mod run;
 mod scene;
 mod state;
+mod team;
 pub mod toml_input;
 
 pub use auto_model::{

@@ -362,4 +362,31 @@ fn results_are_bitwise_identical_across_thread_counts() {
     assert!(x1 == x2 && v1 == v2, "1 and 2 threads differ");
     let (x3, _) = run(2);
     assert!(x2 == x3, "two runs with 2 threads differ");
+    // Two simulations stepped side by side in one pool of two (each keeps the pool's other
+    // worker awake between its regions, which must not hold the other's steps) end with
+    // the bits of one run alone.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let (a, b) = pool.install(|| {
+        let steps = || {
+            let mut sim = s.build().unwrap();
+            for _ in 0..500 {
+                sim.advance().unwrap();
+            }
+            sim.state().positions.clone()
+        };
+        rayon::join(steps, steps)
+    });
+    assert!(
+        a == x2 && b == x2,
+        "side-by-side runs differ from one alone"
+    );
+    assert!(
+        start.elapsed() < std::time::Duration::from_secs(60),
+        "side-by-side runs took {:?}",
+        start.elapsed()
+    );
 }
