@@ -83,7 +83,7 @@ impl NodeChunks {
 /// calling thread: such a pass is a few hundredths of a millisecond, which handing half of
 /// it to the other worker does not shorten (its nodes' cache lines would move between the
 /// cores; docs/PERFORMANCE.md, "One persistent team").
-const SERIAL_PASS_NODES: usize = 8 * NODE_CHUNK;
+const SERIAL_PASS_NODES: usize = 4 * NODE_CHUNK;
 
 /// Steps between estimates of the rigid bodies' contact network's step
 /// ([`Simulation::rigid_network_step`]).
