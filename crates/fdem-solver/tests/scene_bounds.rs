@@ -29,14 +29,16 @@ const BOUND: Duration = Duration::from_secs(20);
 /// interrupted run must still leave whole outputs.
 const STOP: Duration = Duration::from_millis(500);
 
-/// The runs' thread pool: one thread, so that the scenes' tiny models step without
-/// handing work between threads (the test runs light beside other work).
-static POOL: LazyLock<rayon::ThreadPool> = LazyLock::new(|| {
+/// A run's thread pool: one thread, so that the scenes' tiny models step without handing
+/// work between threads (the test runs light beside other work). Each case gets its own,
+/// so that a case that does not return cannot hold the cases after it (and the shrinking)
+/// behind it in the pool's queue.
+fn pool() -> Result<rayon::ThreadPool, String> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
-        .unwrap()
-});
+        .map_err(|e| e.to_string())
+}
 
 /// Values drawn for a float besides arbitrary bit patterns: zero, negative zero, the
 /// smallest subnormal, the edges of the normal range, NaN, the infinities, negative and
@@ -724,9 +726,10 @@ fn check(case: &Case, stop: Duration) -> Result<(Outcome, String), String> {
     let interrupt = Arc::new(AtomicBool::new(false));
     let (send, receive) = std::sync::mpsc::channel();
     let (owned, flag) = (case.clone(), interrupt.clone());
+    let pool = pool()?;
     let start = Instant::now();
     std::thread::spawn(move || {
-        let _ = send.send(POOL.install(|| load_and_run(&owned, &out, &flag)));
+        let _ = send.send(pool.install(|| load_and_run(&owned, &out, &flag)));
     });
     let mut result = receive.recv_timeout(stop);
     if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = result {
@@ -773,14 +776,22 @@ fn run_cases(cases: u32) -> std::collections::BTreeMap<Outcome, u32> {
         ..Config::default()
     });
     let counts = std::cell::RefCell::new(std::collections::BTreeMap::new());
+    // The first failure as drawn: shrinking reports a smaller case, which may fail for
+    // another reason (a machine that stalled, say).
+    let first = std::cell::RefCell::new(None);
     let result = runner.run(&case(), |case| {
-        let fail = |m: String| TestCaseError::fail(format!("{m}\n--- scene ---\n{}", case.text()));
+        let fail = |m: String| {
+            let m = format!("{m}\n--- scene ---\n{}", case.text());
+            first.borrow_mut().get_or_insert_with(|| m.clone());
+            TestCaseError::fail(m)
+        };
         let (outcome, _) = check(&case, STOP).map_err(fail)?;
         *counts.borrow_mut().entry(outcome).or_insert(0) += 1;
         Ok(())
     });
     if let Err(e) = result {
-        panic!("{e}");
+        let first = first.into_inner().unwrap_or_default();
+        panic!("{e}\n--- the first failure, before shrinking ---\n{first}");
     }
     counts.into_inner()
 }
