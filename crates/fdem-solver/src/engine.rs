@@ -29,9 +29,6 @@ struct NodeChunks {
     starts: Vec<usize>,
     /// Node ranges local to their chunk.
     spans: Vec<Range<usize>>,
-    /// Chunks per task of the passes: all of them (one task, on the calling thread) when
-    /// the passes update fewer than [`SERIAL_PASS_NODES`] nodes, else one.
-    per_task: usize,
 }
 
 impl NodeChunks {
@@ -49,15 +46,9 @@ impl NodeChunks {
         if next < n {
             free.push(next..n);
         }
-        let updated: usize = free.iter().map(|r| r.len()).sum();
         let mut chunks = NodeChunks {
             starts: vec![0],
             spans: Vec::new(),
-            per_task: if updated < SERIAL_PASS_NODES {
-                usize::MAX
-            } else {
-                1
-            },
         };
         let mut k = 0;
         for c in 0..n.div_ceil(NODE_CHUNK) {
@@ -78,12 +69,6 @@ impl NodeChunks {
         &self.spans[self.starts[c]..self.starts[c + 1]]
     }
 }
-
-/// Below this many updated nodes the per-node passes (the kicks and the drift) run on the
-/// calling thread: such a pass is a few hundredths of a millisecond, which handing half of
-/// it to the other worker does not shorten (its nodes' cache lines would move between the
-/// cores; docs/PERFORMANCE.md, "One persistent team").
-const SERIAL_PASS_NODES: usize = 4 * NODE_CHUNK;
 
 /// Steps between estimates of the rigid bodies' contact network's step
 /// ([`Simulation::rigid_network_step`]).
@@ -906,14 +891,14 @@ impl Simulation {
     /// kick and drift, forces (with the constraints' pass), booking of work and
     /// dissipation, kick, guard.
     ///
-    /// A step opens one parallel region of the rayon pool with deformable bodies alone
-    /// (elements beside the contact detection), two more when the kicks and the drift
-    /// update at least [`SERIAL_PASS_NODES`] nodes, four more with rigid bodies (kick, drift
-    /// and node placement; poses; motions; forces gathered, kick and node velocities) and
-    /// one for gravity. The simulation's [`Team`] keeps the pool's other workers awake
-    /// between them. Call it from a worker of the pool (inside `ThreadPool::install` or
-    /// `rayon::scope`), as the command line does: from any other thread every region is a
-    /// hand-over to the pool and a wake-up, and there is no team.
+    /// A step opens three parallel regions of the rayon pool with deformable bodies
+    /// alone (kick, drift and the forces' reset; elements beside the contact detection;
+    /// kick), four more with rigid bodies (kick, drift and node placement; poses; motions;
+    /// forces gathered, kick and node velocities) and one for gravity. The simulation's
+    /// [`Team`] keeps the pool's other workers awake between them. Call it from a worker
+    /// of the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
+    /// does: from any other thread every region is a hand-over to the pool and a
+    /// wake-up, and there is no team.
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
         self.team.keep();
@@ -1208,7 +1193,6 @@ fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64, chunks: &NodeChun
         .zip(s.forces.par_chunks_mut(NODE_CHUNK))
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
         .enumerate()
-        .with_min_len(chunks.per_task)
         .for_each(|(c, (((x, v), f), im))| {
             for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
                 for k in 0..3 {
@@ -1227,7 +1211,6 @@ fn kick(s: &mut NodeState, half: f64, chunks: &NodeChunks) -> bool {
         .zip(s.forces.par_chunks(NODE_CHUNK))
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
         .enumerate()
-        .with_min_len(chunks.per_task)
         .map(|(c, ((v, f), im))| {
             let mut ok = true;
             for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
