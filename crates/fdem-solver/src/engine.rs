@@ -14,8 +14,12 @@ use std::ops::Range;
 
 const FOREIGN_HANDLE: &str = "a handle of another model was used with this simulation";
 
-/// Nodes per parallel task in the node-update loops.
-const NODE_CHUNK: usize = 4096;
+/// Nodes per chunk of the node-update loops. Small enough that the loops' halves (rayon
+/// splits a range in halves, the calling thread keeping the first) fall near the
+/// elements' halves, so that each thread mostly updates the nodes whose forces it has just
+/// computed, in its own cache, instead of pulling the other core's lines
+/// (docs/PERFORMANCE.md, "Node chunks that follow the elements' halves").
+const NODE_CHUNK: usize = 512;
 
 /// The nodes the step's per-node passes (kick, drift, force reset, gravity) update, by
 /// chunk of [`NODE_CHUNK`]: every node but the rigid bodies', whose poses place them and
@@ -895,7 +899,7 @@ impl Simulation {
     /// alone (kick, drift and the forces' reset; elements beside the contact detection;
     /// kick), four more with rigid bodies (kick, drift and node placement; poses; motions;
     /// forces gathered, kick and node velocities) and one for gravity. The simulation's
-    /// [`Team`] keeps the pool's other workers awake between them. Call it from a worker
+    /// team (`team.rs`) keeps the pool's other workers awake between them. Call it from a worker
     /// of the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
     /// does: from any other thread every region is a hand-over to the pool and a
     /// wake-up, and there is no team.
