@@ -899,9 +899,9 @@ impl Simulation {
     /// alone (kick, drift and the forces' reset; elements beside the contact detection;
     /// kick), four more with rigid bodies (kick, drift and node placement; poses; motions;
     /// forces gathered, kick and node velocities) and one for gravity. The simulation's
-    /// team (`team.rs`) keeps the pool's other workers awake between them. Call it from a worker
-    /// of the pool (inside `ThreadPool::install` or `rayon::scope`), as the command line
-    /// does: from any other thread every region is a hand-over to the pool and a
+    /// team (`team.rs`) keeps the pool's other workers awake between them. Call it from a
+    /// worker of the pool (inside `ThreadPool::install` or `rayon::scope`), as the command
+    /// line does: from any other thread every region is a hand-over to the pool and a
     /// wake-up, and there is no team.
     pub fn advance(&mut self) -> Result<(), SolverError> {
         let (dt, half) = (self.dt, 0.5 * self.dt);
