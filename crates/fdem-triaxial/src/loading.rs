@@ -250,9 +250,8 @@ pub struct PressurisedMembrane {
     work: VerletWork,
     /// Pressure forces of the current evaluation per membrane node (scratch).
     scratch: Vec<[f64; 3]>,
-    /// `(b - a) x (c - a)` of every triangle at the state of time `.1`, from
-    /// [`ForceContribution::prepare`] (scratch).
-    areas: (Vec<[f64; 3]>, Option<f64>),
+    /// `(b - a) x (c - a)` of every triangle of the current evaluation (scratch).
+    areas: Vec<[f64; 3]>,
     /// The pressure's Verlet correction (W) at the state of time `.1`, from
     /// [`ForceContribution::prepare`] ([`PressurisedMembrane::corrections`]).
     correction: (f64, Option<f64>),
@@ -266,7 +265,7 @@ impl PressurisedMembrane {
             triangles,
             work: VerletWork::default(),
             scratch: Vec::new(),
-            areas: (Vec::new(), None),
+            areas: Vec::new(),
             correction: (0.0, None),
         }
     }
@@ -276,21 +275,19 @@ impl PressurisedMembrane {
         &self.inner
     }
 
-    /// `(b - a) x (c - a)` of every triangle at `nodes`, in parallel over triangles, for
-    /// the state of `nodes.time`.
+    /// `(b - a) x (c - a)` of every triangle at `nodes`, in parallel over triangles.
     fn evaluate_areas(&mut self, nodes: NodeView<'_>) {
         let first = self.inner.first_node();
         let x = nodes.positions;
-        let mut out = std::mem::take(&mut self.areas.0);
-        out.resize(self.triangles.len(), [0.0; 3]);
-        out.par_iter_mut()
+        self.areas.resize(self.triangles.len(), [0.0; 3]);
+        self.areas
+            .par_iter_mut()
             .zip(self.triangles.par_iter())
             .with_min_len(TRIANGLES_PER_TASK)
             .for_each(|(area, t)| {
                 let [a, b, c] = t.map(|i| x[i + first]);
                 *area = cross(sub(b, a), sub(c, a));
             });
-        self.areas = (out, Some(nodes.time));
     }
 
     /// The pressure forces at `nodes` ([`PressurisedMembrane::pressure_forces`]) and the
@@ -313,14 +310,11 @@ impl PressurisedMembrane {
     /// The pressure forces alone at `nodes`: the membrane adds `p a_in / 3` to each corner,
     /// `a_in = (b - a) x (c - a) / 2`; summed node by node in triangle order.
     fn pressure_forces(&mut self, nodes: NodeView<'_>) {
-        if self.areas.1 != Some(nodes.time) {
-            self.evaluate_areas(nodes);
-        }
-        self.areas.1 = None;
+        self.evaluate_areas(nodes);
         let (n, p) = (self.inner.n_nodes(), self.inner.pressure());
         self.scratch.clear();
         self.scratch.resize(n, [0.0; 3]);
-        let (areas, incidence) = (&self.areas.0, self.inner.incidence());
+        let (areas, incidence) = (&self.areas, self.inner.incidence());
         incidence.for_each_node(&mut self.scratch, |i, f| {
             for &(t, _) in incidence.of(i) {
                 for (f, a) in f.iter_mut().zip(&areas[t as usize]) {
@@ -380,7 +374,6 @@ impl ForceContribution for PressurisedMembrane {
     }
 
     fn restore_checkpoint(&mut self, values: &[f64]) -> Result<(), SolverError> {
-        self.areas.1 = None;
         self.correction.1 = None;
         self.inner.forget_preparation();
         self.work.restore_numbers(values)

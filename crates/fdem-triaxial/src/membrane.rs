@@ -552,6 +552,7 @@ impl MembraneForces {
     pub(crate) fn prepared_at(&self, time: f64) -> bool {
         self.prepared.1 == Some(time)
     }
+
     /// The confining pressure (Pa).
     pub fn pressure(&self) -> f64 {
         self.pressure
