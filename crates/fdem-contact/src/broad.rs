@@ -248,6 +248,10 @@ enum Layout {
 const DENSE_CELLS_PER_NODE: usize = 8;
 const DENSE_MIN_CELLS: usize = 1 << 12;
 
+/// The grid's cell size over the mean enlarged triangle box (see
+/// `BroadPhase::enlarged_boxes`; docs/PERFORMANCE.md has the sizes tried).
+const CELL_PER_MEAN_BOX: f64 = 0.75;
+
 /// Triangles per parallel work item of the scan (fixed, so the lists never depend on the
 /// thread count).
 const TRIANGLE_CHUNK: usize = 2048;
@@ -280,16 +284,24 @@ impl Frame {
     fn cell(self, x: [f64; 3]) -> [i64; 3] {
         let (origin, inv) = (self.origin, self.inv);
         [
-            ((x[0] - origin[0]) * inv).floor() as i64,
-            ((x[1] - origin[1]) * inv).floor() as i64,
-            ((x[2] - origin[2]) * inv).floor() as i64,
+            floor_to_i64((x[0] - origin[0]) * inv),
+            floor_to_i64((x[1] - origin[1]) * inv),
+            floor_to_i64((x[2] - origin[2]) * inv),
         ]
     }
 
-    /// Calls `f` with the coordinates of every cell a box overlaps, `x` fastest; with a
-    /// dense layout, only the cells of its grid (the others hold no node).
+    /// Appends to `runs` the runs of `cell_nodes` (through the row starts `cell_start`)
+    /// that hold the nodes of every cell a box overlaps, in the order of the cells (`x`
+    /// fastest) and of the nodes within each: with a dense layout, one run per row of
+    /// cells along `x` (consecutive cell numbers, whose nodes lie consecutively), only the
+    /// cells of its grid (the others hold no node); with the hash table, one run per cell.
     #[inline(always)]
-    fn for_each_cell_within(self, layout: Layout, bx: &[f64; 6], mut f: impl FnMut([i64; 3])) {
+    fn runs_within(
+        self,
+        (layout, table, cell_start): (Layout, &CellTable, &[usize]),
+        bx: &[f64; 6],
+        runs: &mut Vec<std::ops::Range<usize>>,
+    ) {
         let mut lo = self.cell([bx[0], bx[1], bx[2]]);
         let mut hi = self.cell([bx[3], bx[4], bx[5]]);
         if let Layout::Dense { dims } = layout {
@@ -297,14 +309,45 @@ impl Frame {
                 lo[d] = lo[d].max(0);
                 hi[d] = hi[d].min(dims[d] - 1);
             }
+            if lo[0] > hi[0] {
+                return;
+            }
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    let first = (lo[0] + dims[0] * (j + dims[1] * k)) as usize;
+                    let last = first + (hi[0] - lo[0]) as usize;
+                    let run = cell_start[first]..cell_start[last + 1];
+                    if !run.is_empty() {
+                        runs.push(run);
+                    }
+                }
+            }
+            return;
         }
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
                 for i in lo[0]..=hi[0] {
-                    f([i, j, k]);
+                    if let Some(cell) = table.get(pack(i, j, k)) {
+                        let cell = cell as usize;
+                        runs.push(cell_start[cell]..cell_start[cell + 1]);
+                    }
                 }
             }
         }
+    }
+}
+
+/// `v.floor() as i64`, without the library call `floor` becomes on targets without
+/// SSE4.1: the conversion truncates towards zero (saturating, NaN to 0), and a negative
+/// non-integer is one below its truncation. Exact for every `f64`: where `v` has no
+/// fraction, or lies beyond the `i64` range, the truncation is already the answer.
+#[inline(always)]
+fn floor_to_i64(v: f64) -> i64 {
+    let t = v as i64;
+    if (t as f64) > v {
+        t.saturating_sub(1)
+    } else {
+        t
     }
 }
 
@@ -426,9 +469,17 @@ fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
     bx
 }
 
+/// Whether `x` lies in the box `b` (lower corner, upper corner), without a branch per
+/// comparison: the scans meet a few nodes per face, in or out at random, where
+/// short-circuit tests would be mispredicted jumps.
 #[inline(always)]
 fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
-    x[0] >= b[0] && x[1] >= b[1] && x[2] >= b[2] && x[0] <= b[3] && x[1] <= b[4] && x[2] <= b[5]
+    (x[0] >= b[0])
+        & (x[1] >= b[1])
+        & (x[2] >= b[2])
+        & (x[0] <= b[3])
+        & (x[1] <= b[4])
+        & (x[2] <= b[5])
 }
 
 impl BroadPhase {
@@ -541,37 +592,53 @@ impl BroadPhase {
         surface: &ContactSurface,
         reach: f64,
     ) -> f64 {
-        // Raw triangle boxes, the largest extent and the sum of the extents.
-        self.boxes.clear();
-        let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
-        for tri in &surface.triangles {
-            let [a, b, c] = tri.map(|i| positions[i]);
-            let mut bx = [0.0; 6];
-            let mut extent = 0.0_f64;
-            for d in 0..3 {
-                bx[d] = a[d].min(b[d]).min(c[d]);
-                bx[d + 3] = a[d].max(b[d]).max(c[d]);
-                extent = extent.max(bx[d + 3] - bx[d]);
-            }
-            largest = largest.max(extent);
-            sum += extent;
-            self.boxes.push(bx);
-        }
+        // Raw triangle boxes, and per fixed run of triangles the largest extent and the sum
+        // of the extents (added in run order below: the same cell size for every thread
+        // count).
+        let triangles = &surface.triangles;
+        self.boxes.resize(triangles.len(), [0.0; 6]);
+        let runs: Vec<(f64, f64)> = self
+            .boxes
+            .par_chunks_mut(TRIANGLE_CHUNK)
+            .zip(triangles.par_chunks(TRIANGLE_CHUNK))
+            .map(|(boxes, triangles)| {
+                let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
+                for (bx, tri) in boxes.iter_mut().zip(triangles) {
+                    let [a, b, c] = tri.map(|i| positions[i]);
+                    let mut extent = 0.0_f64;
+                    for d in 0..3 {
+                        bx[d] = a[d].min(b[d]).min(c[d]);
+                        bx[d + 3] = a[d].max(b[d]).max(c[d]);
+                        extent = extent.max(bx[d + 3] - bx[d]);
+                    }
+                    largest = largest.max(extent);
+                    sum += extent;
+                }
+                (largest, sum)
+            })
+            .collect();
+        let largest = runs.iter().fold(0.0_f64, |l, r| l.max(r.0));
+        let sum: f64 = runs.iter().map(|r| r.1).sum();
         // margin + depth limit: both the node and the face may move margin/2 before the next
         // build, and the node may sit up to the depth limit behind the face; the tolerance
         // band lets a foot fall slightly outside the triangle.
         let e = reach + 2.0 * BARYCENTRIC_TOLERANCE * largest;
         self.enlargement = e;
-        for bx in &mut self.boxes {
-            for d in 0..3 {
-                bx[d] -= e;
-                bx[d + 3] += e;
-            }
-        }
-        // Half the mean enlarged box: a box overlaps about three cells per axis, each with
-        // a few nodes; an eighth of the largest bounds the cells a large face visits.
+        self.boxes
+            .par_iter_mut()
+            .with_min_len(TRIANGLE_CHUNK)
+            .for_each(|bx| {
+                for d in 0..3 {
+                    bx[d] -= e;
+                    bx[d + 3] += e;
+                }
+            });
+        // Three quarters of the mean enlarged box: a box overlaps two or three cells per
+        // axis (two or three rows of cells per layer, each one run of nodes for the scan),
+        // each with a few nodes; an eighth of the largest bounds the cells a large face
+        // visits. The size only sets the work: the scan's own tests decide the lists.
         let mean = sum / surface.triangles.len().max(1) as f64;
-        self.cell_size = (0.5 * (mean + 2.0 * e)).max((largest + 2.0 * e) / 8.0);
+        self.cell_size = (CELL_PER_MEAN_BOX * (mean + 2.0 * e)).max((largest + 2.0 * e) / 8.0);
         e
     }
 
@@ -612,17 +679,18 @@ impl BroadPhase {
         // Number every binned node's cell (a node always lies in the grid: its own cell).
         self.node_cells.clear();
         let (reference, binned) = (&self.reference, &self.binned);
-        let positions = binned.iter().map(|&k| reference[k as usize]);
         match self.layout {
             Layout::Dense { .. } => {
                 let (layout, table) = (self.layout, &self.table);
-                self.node_cells.extend(
-                    positions.map(|x| lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)),
-                );
+                self.node_cells.par_extend(binned.par_iter().map(|&k| {
+                    let x = reference[k as usize];
+                    lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)
+                }));
             }
             Layout::Hash => {
                 let table = &mut self.table;
                 table.reset(n);
+                let positions = binned.iter().map(|&k| reference[k as usize]);
                 self.node_cells.extend(positions.map(|x| {
                     let [i, j, k] = frame.cell(x);
                     table.insert(pack(i, j, k))
@@ -654,12 +722,13 @@ impl BroadPhase {
         }
         // Positions and bodies in the same order, so the scan reads a cell's nodes
         // sequentially.
+        let (reference, cell_nodes) = (&self.reference, &self.cell_nodes);
         self.cell_x.clear();
         self.cell_x
-            .extend(self.cell_nodes.iter().map(|&k| self.reference[k as usize]));
+            .par_extend(cell_nodes.par_iter().map(|&k| reference[k as usize]));
         self.cell_body.clear();
         self.cell_body
-            .extend(self.cell_nodes.iter().map(|&k| node_body[k as usize]));
+            .par_extend(cell_nodes.par_iter().map(|&k| node_body[k as usize]));
         frame
     }
 
@@ -702,6 +771,7 @@ impl BroadPhase {
             .for_each(|(chunk, pairs)| {
                 pairs.clear();
                 let mut scratch = Default::default();
+                let (mut runs, mut inside) = (Vec::new(), Vec::new());
                 let triangles = pieces[chunk].clone();
                 let rows = boxes[triangles.clone()]
                     .iter()
@@ -727,24 +797,29 @@ impl BroadPhase {
                         let face = (bx, candidate);
                         spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
                     }
-                    frame.for_each_cell_within(layout, bx, |c| {
-                        let Some(cell) = lookup(layout, table, c) else {
-                            return;
-                        };
-                        let row = cell_start[cell]..cell_start[cell + 1];
-                        for ((&k, &x), &body) in cell_nodes[row.clone()]
+                    // The nodes of other bodies in the box first, without a branch per
+                    // node (in or out at random), then the full test on those.
+                    runs.clear();
+                    frame.runs_within((layout, table, cell_start), bx, &mut runs);
+                    for run in &runs {
+                        inside.clear();
+                        inside.resize(run.len(), 0);
+                        let mut n = 0;
+                        for (i, (&x, &body)) in cell_x[run.clone()]
                             .iter()
-                            .zip(&cell_x[row.clone()])
-                            .zip(&cell_body[row])
+                            .zip(&cell_body[run.clone()])
+                            .enumerate()
                         {
-                            if body != owner
-                                && in_box(bx, x)
-                                && is_candidate(x, face, reach, (window.depth, &mut window_reach))
-                            {
-                                pairs.push((k, candidate));
+                            inside[n] = run.start + i;
+                            n += usize::from((body != owner) & in_box(bx, x));
+                        }
+                        for &i in &inside[..n] {
+                            let x = cell_x[i];
+                            if is_candidate(x, face, reach, (window.depth, &mut window_reach)) {
+                                pairs.push((cell_nodes[i], candidate));
                             }
                         }
-                    });
+                    }
                 }
             });
     }
@@ -846,5 +921,51 @@ impl<'a> ChunkLists<'a> {
     #[inline(always)]
     pub(crate) fn of(&self, i: usize) -> &'a [Candidate] {
         &self.cands[self.starts[i]..self.starts[i + 1]]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::floor_to_i64;
+    use rand::{RngExt, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    /// The branch-free floor agrees with the library's `floor` followed by the same
+    /// saturating conversion, at the edges and on random values of every magnitude.
+    #[test]
+    fn floor_to_i64_is_the_floor() {
+        let edges = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.0 - f64::EPSILON,
+            -1e-300,
+            2.0_f64.powi(52) + 0.5,
+            -(2.0_f64.powi(52) + 0.5),
+            2.0_f64.powi(63),
+            -(2.0_f64.powi(63)),
+            -(2.0_f64.powi(63)) - 4096.0,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        let mut r = Pcg64::seed_from_u64(3);
+        let random = (0..100_000).map(|_| {
+            let exponent = r.random_range(-20.0..70.0);
+            let sign = if r.random_range(0.0..1.0) < 0.5 {
+                -1.0
+            } else {
+                1.0
+            };
+            sign * 2.0_f64.powf(exponent) * r.random_range(1.0..2.0)
+        });
+        for v in edges.into_iter().chain(random) {
+            assert_eq!(floor_to_i64(v), v.floor() as i64, "{v:e}");
+        }
     }
 }
