@@ -8,12 +8,13 @@
 //! than that) is a candidate pair if it lies in front of the face within the front reach,
 //! or behind it near enough to its window, the prism where the narrow phase accepts a
 //! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The
-//! cell size is half the mean enlarged box (at least an eighth of the largest), so a box
-//! overlaps a few cells of a few nodes each. Cells are
-//! numbered densely (`i + nx (j + ny k)`) when the nodes' region holds at most
-//! [`DENSE_CELLS_PER_NODE`] cells per node, and otherwise through their packed integer
-//! coordinates in a deterministic open-addressing table (fixed hash function, slots
-//! numbered in insertion order). Triangles are scanned in parallel in fixed chunks, and the
+//! cell size is three quarters of the mean enlarged box (at least an eighth of the
+//! largest), so a box overlaps a few cells of a few nodes each; it sets only the work,
+//! never the lists. Cells are numbered densely (`i + nx (j + ny k)`) when the nodes'
+//! region holds at most [`DENSE_CELLS_PER_NODE`] cells per node, and then a box's cells
+//! along `x` in one row are one run of binned nodes; otherwise through their packed
+//! integer coordinates in a deterministic open-addressing table (fixed hash function,
+//! slots numbered in insertion order). Triangles are scanned in parallel in fixed chunks, and the
 //! pairs are then placed into each node's list in triangle order, sorted by (owner body,
 //! triangle): the lists are the same for every thread count, and a build costs
 //! O(triangles + surface nodes + pairs).

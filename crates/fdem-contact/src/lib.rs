@@ -61,8 +61,8 @@
 //!   tunnelling scale against solid faces and walls: a node may move `D / 2` relative to
 //!   them in one step, and no two nodes may approach by more than `D` (the distance that
 //!   separates bodies outside each other's candidate lists).
-//! - Broad phase: the surface nodes are binned in a uniform grid (cells of half the mean
-//!   triangle box enlarged by `delta + D` plus the tolerance band); cells are numbered
+//! - Broad phase: the surface nodes are binned in a uniform grid (cells of three quarters
+//!   of the mean triangle box enlarged by `delta + D` plus the tolerance band); cells are numbered
 //!   densely when the nodes' region is compact (up to 8 cells per node) and through a
 //!   seedless hash table otherwise. Each triangle visits the cells its enlarged box
 //!   overlaps: a node of another body there whose position the box holds and that lies
