@@ -802,10 +802,12 @@ impl BroadPhase {
                     // node (in or out at random), then the full test on those.
                     runs.clear();
                     frame.runs_within((layout, table, cell_start), bx, &mut runs);
+                    let total = runs.iter().map(|r| r.len()).sum::<usize>();
+                    if inside.len() < total {
+                        inside.resize(total, 0);
+                    }
+                    let mut n = 0;
                     for run in &runs {
-                        inside.clear();
-                        inside.resize(run.len(), 0);
-                        let mut n = 0;
                         for (i, (&x, &body)) in cell_x[run.clone()]
                             .iter()
                             .zip(&cell_body[run.clone()])
@@ -814,11 +816,11 @@ impl BroadPhase {
                             inside[n] = run.start + i;
                             n += usize::from((body != owner) & in_box(bx, x));
                         }
-                        for &i in &inside[..n] {
-                            let x = cell_x[i];
-                            if is_candidate(x, face, reach, (window.depth, &mut window_reach)) {
-                                pairs.push((cell_nodes[i], candidate));
-                            }
+                    }
+                    for &i in &inside[..n] {
+                        let x = cell_x[i];
+                        if is_candidate(x, face, reach, (window.depth, &mut window_reach)) {
+                            pairs.push((cell_nodes[i], candidate));
                         }
                     }
                 }
