@@ -26,9 +26,9 @@ pub const MARGIN_EDGE_FRACTION: f64 = 0.1;
 
 /// Fraction of the scale on which the narrow phase sees a crossing (the margin against a
 /// sheet's face, the depth limit against a solid face or a wall) that a node may move
-/// relative to a nearby face (or wall) in one step before [`ContactModel::add_forces`] reports
-/// [`ContactError::Tunnelling`]; also the fraction of the depth limit beyond which it
-/// reports [`ContactError::PenetrationTooDeep`].
+/// relative to a nearby face (or wall) in one step before [`ContactModel::add_forces`]
+/// reports [`ContactError::Tunnelling`]; also the fraction of the depth limit beyond
+/// which it reports [`ContactError::PenetrationTooDeep`].
 pub const TUNNELLING_FRACTION: f64 = 0.5;
 
 /// When the broad phase renews only the pairs of the bodies that drifted instead of
@@ -819,11 +819,11 @@ impl ContactModel {
     /// run. When a contact reaches half the limit, [`ContactModel::add_forces`] sets the
     /// limit to [`DEPTH_LIMIT_GROWTH`] times that depth (at most `cap`), rebuilds the
     /// broad phase and evaluates the step again; a displacement past the tunnelling reach
-    /// against solids ([`TUNNELLING_FRACTION`] of the limit) grows it likewise. Only a depth or displacement
-    /// above half of `cap` stops it. Contacts shallower than half the old
-    /// limit are the same with either limit (the nearest face behind a node is the one
-    /// within the old window), so the growth changes the candidate lists' cost, not the
-    /// forces. `cap` must stay well below the particles' thickness (see
+    /// against solids ([`TUNNELLING_FRACTION`] of the limit) grows it likewise. Only a
+    /// depth or displacement above half of `cap` stops it. Contacts shallower than half
+    /// the old limit are the same with either limit (the nearest face behind a node is the
+    /// one within the old window), so the growth changes the candidate lists' cost, not
+    /// the forces. `cap` must stay well below the particles' thickness (see
     /// [`ContactModel::set_depth_limit`]).
     ///
     /// # Errors
