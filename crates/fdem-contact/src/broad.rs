@@ -257,19 +257,11 @@ const CELL_PER_MEAN_BOX: f64 = 0.75;
 /// thread count).
 const TRIANGLE_CHUNK: usize = 2048;
 
-/// The cell number of integer cell coordinates, `None` for an empty cell.
+/// The number of cell `c` (within the grid) in a dense layout of `dims` cells, `x`
+/// fastest: a row along `x` has consecutive numbers.
 #[inline(always)]
-fn lookup(layout: Layout, table: &CellTable, c: [i64; 3]) -> Option<usize> {
-    match layout {
-        Layout::Dense { dims } => {
-            if (0..3).all(|d| c[d] >= 0 && c[d] < dims[d]) {
-                Some((c[0] + dims[0] * (c[1] + dims[1] * c[2])) as usize)
-            } else {
-                None
-            }
-        }
-        Layout::Hash => table.get(pack(c[0], c[1], c[2])).map(|v| v as usize),
-    }
+fn dense_index(dims: [i64; 3], c: [i64; 3]) -> usize {
+    (c[0] + dims[0] * (c[1] + dims[1] * c[2])) as usize
 }
 
 /// Where the grid lies: the corner of cell `[0, 0, 0]` and the inverse cell size.
@@ -315,7 +307,7 @@ impl Frame {
             }
             for k in lo[2]..=hi[2] {
                 for j in lo[1]..=hi[1] {
-                    let first = (lo[0] + dims[0] * (j + dims[1] * k)) as usize;
+                    let first = dense_index(dims, [lo[0], j, k]);
                     let last = first + (hi[0] - lo[0]) as usize;
                     let run = cell_start[first]..cell_start[last + 1];
                     if !run.is_empty() {
@@ -681,11 +673,15 @@ impl BroadPhase {
         self.node_cells.clear();
         let (reference, binned) = (&self.reference, &self.binned);
         match self.layout {
-            Layout::Dense { .. } => {
-                let (layout, table) = (self.layout, &self.table);
+            Layout::Dense { dims } => {
                 self.node_cells.par_extend(binned.par_iter().map(|&k| {
-                    let x = reference[k as usize];
-                    lookup(layout, table, frame.cell(x)).map_or(0, |c| c as u32)
+                    let c = frame.cell(reference[k as usize]);
+                    let within = (0..3).all(|d| c[d] >= 0 && c[d] < dims[d]);
+                    if within {
+                        dense_index(dims, c) as u32
+                    } else {
+                        0
+                    }
                 }));
             }
             Layout::Hash => {
