@@ -275,7 +275,7 @@ impl Ctx<'_> {
                 self.prefetch_planes(ahead, lists.of(ahead - start));
             }
             let cands = lists.of(k - start);
-            if cands.is_empty() && self.clear_of_walls(k) {
+            if cands.is_empty() && (self.clear_of_walls(k) || self.touches_no_wall(k)) {
                 continue;
             }
             if let Err(e) = self.node(k, cands, scratch, &mut cursor) {
@@ -292,6 +292,24 @@ impl Ctx<'_> {
     fn clear_of_walls(&self, k: usize) -> bool {
         let body = self.surface.node_body[k] as usize;
         self.clear_of_walls.get(body).copied().unwrap_or(false)
+    }
+
+    /// Whether surface node `k` stays clear of every wall in this evaluation without a
+    /// tunnelling check to run: no wall check this step (`check_walls`) and no wall with
+    /// the node behind it. Exactly when [`Ctx::wall_contacts`] would neither record a
+    /// contact nor return an error, read from the node's position alone, so that a node
+    /// without candidates (most nodes of a packing) is passed over without its velocity or
+    /// scratch.
+    #[inline(always)]
+    fn touches_no_wall(&self, k: usize) -> bool {
+        if self.check_walls {
+            return false;
+        }
+        let x = self.positions[self.surface.surface_nodes[k]];
+        // `!(d < 0.0)` as `wall_contacts` records a contact on `d < 0.0` only.
+        self.wall_shapes
+            .iter()
+            .all(|shape| wall_distance(shape, x).is_none_or(|(d, _)| !(d < 0.0)))
     }
 
     /// Asks the memory system for the planes of surface node `k`'s candidates `cands`, their
