@@ -1178,10 +1178,15 @@ fn add_gravity(g: [f64; 3], s: (&[f64], &[f64]), forces: &mut [[f64; 3]], chunks
         .zip(inverse_masses.par_chunks(NODE_CHUNK))
         .enumerate()
         .for_each(|(c, ((f, m), im))| {
-            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
-                if im[i] > 0.0 {
-                    for k in 0..3 {
-                        f[i][k] += m[i] * g[k];
+            for r in chunks.of(c) {
+                for (f, (&m, &im)) in f[r.clone()]
+                    .iter_mut()
+                    .zip(m[r.clone()].iter().zip(&im[r.clone()]))
+                {
+                    if im > 0.0 {
+                        for k in 0..3 {
+                            f[k] += m * g[k];
+                        }
                     }
                 }
             }
@@ -1198,12 +1203,16 @@ fn kick_drift_and_reset(s: &mut NodeState, half: f64, dt: f64, chunks: &NodeChun
         .zip(s.inverse_masses.par_chunks(NODE_CHUNK))
         .enumerate()
         .for_each(|(c, (((x, v), f), im))| {
-            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
-                for k in 0..3 {
-                    v[i][k] += half * f[i][k] * im[i];
-                    x[i][k] += dt * v[i][k];
+            // Span by span over zipped slices, so that the loop needs no bounds checks.
+            for r in chunks.of(c) {
+                let nodes = x[r.clone()].iter_mut().zip(&mut v[r.clone()]);
+                for ((x, v), (f, &im)) in nodes.zip(f[r.clone()].iter_mut().zip(&im[r.clone()])) {
+                    for k in 0..3 {
+                        v[k] += half * f[k] * im;
+                        x[k] += dt * v[k];
+                    }
+                    *f = [0.0; 3];
                 }
-                f[i] = [0.0; 3];
             }
         });
 }
@@ -1217,10 +1226,15 @@ fn kick(s: &mut NodeState, half: f64, chunks: &NodeChunks) -> bool {
         .enumerate()
         .map(|(c, ((v, f), im))| {
             let mut ok = true;
-            for i in chunks.of(c).iter().flat_map(|r| r.clone()) {
-                for k in 0..3 {
-                    v[i][k] += half * f[i][k] * im[i];
-                    ok &= v[i][k].is_finite();
+            for r in chunks.of(c) {
+                for (v, (f, &im)) in v[r.clone()]
+                    .iter_mut()
+                    .zip(f[r.clone()].iter().zip(&im[r.clone()]))
+                {
+                    for k in 0..3 {
+                        v[k] += half * f[k] * im;
+                        ok &= v[k].is_finite();
+                    }
                 }
             }
             ok
