@@ -75,7 +75,9 @@
 //!   face), or when a sheet hit is deeper than the fold depth. The hand-written
 //!   projection is the default kernel; the parry3d-f64 one (`ProjectionKernel::Parry`)
 //!   gives the same contacts and is slower per pair (docs/PERFORMANCE.md, "Narrow phase:
-//!   hand-written projection versus parry3d-f64").
+//!   hand-written projection versus parry3d-f64"). A node without candidates is passed
+//!   over when no wall can touch it in the evaluation (read from its position, or for a
+//!   framed rigid body from its pose): it could have no contact and trip no check.
 //! - Tangential history is keyed by (node, other body or wall), so it survives a switch of
 //!   face on the same body, and is dropped when the contact opens.
 //! - Parallelism (rayon): surface nodes are processed in fixed chunks of 512, each chunk
