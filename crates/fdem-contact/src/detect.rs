@@ -306,10 +306,11 @@ impl Ctx<'_> {
             return false;
         }
         let x = self.positions[self.surface.surface_nodes[k]];
-        // `!(d < 0.0)` as `wall_contacts` records a contact on `d < 0.0` only.
-        self.wall_shapes
+        // `d < 0.0`, as `wall_contacts` records a contact on that test alone.
+        !self
+            .wall_shapes
             .iter()
-            .all(|shape| wall_distance(shape, x).is_none_or(|(d, _)| !(d < 0.0)))
+            .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| d < 0.0))
     }
 
     /// Asks the memory system for the planes of surface node `k`'s candidates `cands`, their
