@@ -14,10 +14,10 @@
 //! region holds at most [`DENSE_CELLS_PER_NODE`] cells per node, and then a box's cells
 //! along `x` in one row are one run of binned nodes; otherwise through their packed
 //! integer coordinates in a deterministic open-addressing table (fixed hash function,
-//! slots numbered in insertion order). Triangles are scanned in parallel in fixed chunks, and the
-//! pairs are then placed into each node's list in triangle order, sorted by (owner body,
-//! triangle): the lists are the same for every thread count, and a build costs
-//! O(triangles + surface nodes + pairs).
+//! slots numbered in insertion order). Triangles are scanned in parallel in fixed
+//! chunks, and the pairs are then placed into each node's list in triangle order, sorted
+//! by (owner body, triangle): the lists are the same for every thread count, and a build
+//! costs O(triangles + surface nodes + pairs).
 //!
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from

@@ -63,10 +63,10 @@
 //!   separates bodies outside each other's candidate lists).
 //! - Broad phase: the surface nodes are binned in a uniform grid (cells of three quarters
 //!   of the mean triangle box enlarged by `delta + D` plus the tolerance band); cells are
-//!   numbered densely when the nodes' region is compact (up to 8 cells per node) and through a
-//!   seedless hash table otherwise. Each triangle visits the cells its enlarged box
-//!   overlaps: a node of another body there whose position the box holds and that lies
-//!   within `delta + D` (plus the band) of the triangle is a candidate. Builds and
+//!   numbered densely when the nodes' region is compact (up to 8 cells per node) and
+//!   through a seedless hash table otherwise. Each triangle visits the cells its enlarged
+//!   box overlaps: a node of another body there whose position the box holds and that
+//!   lies within `delta + D` (plus the band) of the triangle is a candidate. Builds and
 //!   evaluations are O(surface nodes + triangles + candidate pairs).
 //! - Narrow phase: per (node, other body) the contact face is the nearest one (smallest
 //!   depth) among the faces the node is behind with its foot inside (within
