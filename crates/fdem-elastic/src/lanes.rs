@@ -324,10 +324,103 @@ fn add_all<K: LaneKernel<N>, const N: usize>(
     Ok(())
 }
 
-/// `true` when every lane of `v` is finite and positive.
+/// A condition per lane: every bit set where it holds, none where it does not. Tests and
+/// selections run on all lanes at once, without a branch per lane, so the compiler keeps
+/// them in vector registers (a branch per lane made it take the vectors apart).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Mask([u64; LANES]);
+
+impl Mask {
+    /// Every lane.
+    const ALL: Mask = Mask([u64::MAX; LANES]);
+
+    /// The lanes where `test` holds.
+    #[inline(always)]
+    fn lanes(a: V, b: V, test: impl Fn(f64, f64) -> bool) -> Mask {
+        let mut m = [0; LANES];
+        for l in 0..LANES {
+            m[l] = if test(a.0[l], b.0[l]) { u64::MAX } else { 0 };
+        }
+        Mask(m)
+    }
+
+    /// `a < b`, per lane (false where either is NaN).
+    #[inline(always)]
+    fn lt(a: V, b: V) -> Mask {
+        Mask::lanes(a, b, |a, b| a < b)
+    }
+
+    /// `a >= b`, per lane (false where either is NaN).
+    #[inline(always)]
+    fn ge(a: V, b: V) -> Mask {
+        Mask::lanes(a, b, |a, b| a >= b)
+    }
+
+    /// The lanes of both.
+    #[inline(always)]
+    fn and(self, o: Mask) -> Mask {
+        let mut m = self.0;
+        for l in 0..LANES {
+            m[l] &= o.0[l];
+        }
+        Mask(m)
+    }
+
+    /// The lanes of `self` that are not in `o`.
+    #[inline(always)]
+    fn and_not(self, o: Mask) -> Mask {
+        let mut m = self.0;
+        for l in 0..LANES {
+            m[l] &= !o.0[l];
+        }
+        Mask(m)
+    }
+
+    /// `true` when some lane holds.
+    #[inline(always)]
+    fn any(self) -> bool {
+        self.0.iter().fold(0, |a, &m| a | m) != 0
+    }
+
+    /// `true` when every lane holds.
+    #[inline(always)]
+    fn all(self) -> bool {
+        self.0.iter().fold(u64::MAX, |a, &m| a & m) == u64::MAX
+    }
+
+    /// `a` where the mask holds, `b` elsewhere: the values themselves, bit for bit.
+    #[inline(always)]
+    fn select(self, a: V, b: V) -> V {
+        let mut r = [0.0; LANES];
+        for l in 0..LANES {
+            let m = self.0[l];
+            r[l] = f64::from_bits((a.0[l].to_bits() & m) | (b.0[l].to_bits() & !m));
+        }
+        V(r)
+    }
+
+    /// [`Mask::select`] for every entry of two matrices.
+    #[inline(always)]
+    fn select_m(self, a: &M, b: &M) -> M {
+        let mut r = *b;
+        for i in 0..3 {
+            for j in 0..3 {
+                r[i][j] = self.select(a[i][j], b[i][j]);
+            }
+        }
+        r
+    }
+}
+
+/// `true` when every lane of `v` is finite and positive: `0 < v`, and `v - v` is zero
+/// (NaN for an infinite `v`; NaN fails both). Written as arithmetic, not as `is_finite`
+/// or `v < inf`, which the compiler turns into integer tests lane by lane.
+#[allow(clippy::eq_op)] // `v - v` is the finiteness test, on purpose.
 #[inline(always)]
 fn all_positive(v: V) -> bool {
-    v.0.iter().all(|v| v.is_finite() && *v > 0.0)
+    Mask::lt(V::ZERO, v)
+        .and(Mask::lanes(v - v, V::ZERO, |a, b| a == b))
+        .all()
 }
 
 impl LaneKernel<4> for Linear {
@@ -416,15 +509,14 @@ fn orthogonality_defect(x: &M) -> (V, M) {
 /// (the one-element kernel then handles the block).
 #[inline(always)]
 fn polar_rotation_lanes(f: &M) -> Option<M> {
+    let region = V::splat(NS_REGION2);
     let mut x = *f;
     let (mut r2, mut m) = orthogonality_defect(&x);
-    let mut active = [true; LANES];
-    for l in 0..LANES {
-        let v = r2.0[l];
-        if v.is_nan() || v >= NS_REGION2 {
-            return None;
-        }
+    // `r2 < NS_REGION2` fails for NaN too.
+    if !Mask::lt(r2, region).all() {
+        return None;
     }
+    let mut active = Mask::ALL;
     for _ in 0..MAX_NS {
         let mut t = m;
         for i in 0..3 {
@@ -432,37 +524,17 @@ fn polar_rotation_lanes(f: &M) -> Option<M> {
                 t[i][j] = V::splat(0.5) * (V::splat(3.0 * IDENTITY[i][j]) - t[i][j]);
             }
         }
-        let next = mul(&x, &t);
-        for i in 0..3 {
-            for j in 0..3 {
-                for l in 0..LANES {
-                    if active[l] {
-                        x[i][j].0[l] = next[i][j].0[l];
-                    }
-                }
-            }
-        }
-        for l in 0..LANES {
-            active[l] &= r2.0[l] >= CONVERGED2;
-        }
-        if !active.iter().any(|&a| a) {
+        x = active.select_m(&mul(&x, &t), &x);
+        active = active.and(Mask::ge(r2, V::splat(CONVERGED2)));
+        if !active.any() {
             return Some(x);
         }
         let (r2_next, m_next) = orthogonality_defect(&x);
-        for l in 0..LANES {
-            if active[l] {
-                let v = r2_next.0[l];
-                if v.is_nan() || v >= NS_REGION2 {
-                    return None;
-                }
-                r2.0[l] = v;
-                for i in 0..3 {
-                    for j in 0..3 {
-                        m[i][j].0[l] = m_next[i][j].0[l];
-                    }
-                }
-            }
+        if active.and_not(Mask::lt(r2_next, region)).any() {
+            return None;
         }
+        r2 = active.select(r2_next, r2);
+        m = active.select_m(&m_next, &m);
     }
     None
 }
