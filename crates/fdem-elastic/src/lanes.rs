@@ -415,12 +415,16 @@ impl Mask {
 /// `true` when every lane of `v` is finite and positive: `0 < v`, and `v - v` is zero
 /// (NaN for an infinite `v`; NaN fails both). Written as arithmetic, not as `is_finite`
 /// or `v < inf`, which the compiler turns into integer tests lane by lane.
-#[allow(clippy::eq_op)] // `v - v` is the finiteness test, on purpose.
 #[inline(always)]
 fn all_positive(v: V) -> bool {
-    Mask::lt(V::ZERO, v)
-        .and(Mask::lanes(v - v, V::ZERO, |a, b| a == b))
-        .all()
+    positive(v).all()
+}
+
+/// The lanes of `v` that are finite and positive (see [`all_positive`]).
+#[allow(clippy::eq_op)] // `v - v` is the finiteness test, on purpose.
+#[inline(always)]
+fn positive(v: V) -> Mask {
+    Mask::lt(V::ZERO, v).and(Mask::lanes(v - v, V::ZERO, |a, b| a == b))
 }
 
 impl LaneKernel<4> for Linear {
@@ -465,7 +469,11 @@ impl LaneKernel<10> for Quadratic {
         let xs = b.gather(x);
         let g = grads4(&b.grad);
         let (fc, fbar) = tet10_gradients(&xs, &g);
-        if !(all_positive(det(&fbar)) && fc.iter().all(|f| all_positive(det(f)))) {
+        let mut ok = positive(det(&fbar));
+        for f in &fc {
+            ok = ok.and(positive(det(f)));
+        }
+        if !ok.all() {
             return None;
         }
         let r = polar_rotation_lanes(&fbar)?;
