@@ -621,6 +621,55 @@ mod tests {
     }
 
     #[test]
+    fn the_positive_mask_is_finite_and_positive_lane_by_lane() {
+        let special = [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            -1.0,
+            1.0,
+            -f64::MAX,
+            f64::EPSILON,
+        ];
+        // Every special value in every lane, beside finite positive values in the others.
+        for &value in &special {
+            for lane in 0..LANES {
+                let mut v = V([1.0; LANES]);
+                v.0[lane] = value;
+                let expected = value.is_finite() && value > 0.0;
+                assert_eq!(all_positive(v), expected, "{value:e} in lane {lane}");
+                let m = positive(v);
+                for l in 0..LANES {
+                    assert_eq!(m.0[l] == u64::MAX, l != lane || expected, "{value:e}");
+                    assert!(m.0[l] == u64::MAX || m.0[l] == 0);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_mask_selects_the_bits_of_each_lane() {
+        let a = V([-0.0, f64::NAN, 1.0, -2.5, f64::INFINITY, 3.0, 5e-324, 7.0]);
+        let b = V([0.0, 4.0, f64::NAN, 2.5, -1.0, -3.0, 6.0, -0.0]);
+        let m = Mask::lt(V([0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0]), V::splat(0.5));
+        let r = m.select(a, b);
+        for l in 0..LANES {
+            let want = if l % 2 == 0 { a.0[l] } else { b.0[l] };
+            assert_eq!(r.0[l].to_bits(), want.to_bits(), "lane {l}");
+        }
+        // NaN compares false either way; `and_not`, `any` and `all` by lane.
+        let nan = V::splat(f64::NAN);
+        assert!(!Mask::lt(nan, V::ZERO).any() && !Mask::ge(nan, V::ZERO).any());
+        assert!(Mask::ALL.all() && !m.all() && m.any());
+        assert!(!m.and_not(m).any() && m.and(Mask::ALL) == m);
+    }
+
+    #[test]
     fn a_block_holds_eight_elements_in_784_or_976_bytes() {
         // 98 bytes per linear and 122 per quadratic element (docs/PERFORMANCE.md, "Memory").
         assert_eq!(std::mem::size_of::<Tet4Block>(), 784);
