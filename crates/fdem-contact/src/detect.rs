@@ -231,6 +231,14 @@ pub(crate) struct Ctx<'a> {
     pub(crate) clear_of_walls: &'a [bool],
 }
 
+/// Whether a node at signed `distance` (m, positive in front) from a wall is in contact
+/// with it: [`Ctx::wall_contacts`] records a contact on this test alone, and
+/// [`Ctx::touches_no_wall`] passes a node over on it.
+#[inline(always)]
+fn behind_wall(distance: f64) -> bool {
+    distance < 0.0
+}
+
 impl Ctx<'_> {
     /// How far node `k` may move relative to `counterpart` in one step, and the scale
     /// that sets it ([`StepReach`]).
@@ -306,11 +314,10 @@ impl Ctx<'_> {
             return false;
         }
         let x = self.positions[self.surface.surface_nodes[k]];
-        // `d < 0.0`, as `wall_contacts` records a contact on that test alone.
         !self
             .wall_shapes
             .iter()
-            .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| d < 0.0))
+            .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| behind_wall(d)))
     }
 
     /// Asks the memory system for the planes of surface node `k`'s candidates `cands`, their
@@ -663,7 +670,7 @@ impl Ctx<'_> {
                     return Err(self.tunnelling(k, counterpart, d));
                 }
             }
-            if distance < 0.0 {
+            if behind_wall(distance) {
                 let depth = -distance;
                 let point = add(x, scale(normal, depth));
                 self.push(
