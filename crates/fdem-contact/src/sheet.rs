@@ -57,7 +57,6 @@
 //! [`ContactError::PenetrationTooDeep`]: crate::ContactError::PenetrationTooDeep
 
 use crate::ContactError;
-use crate::broad::Candidate;
 use crate::detect::{FaceContact, FaceGroup, plane_slack};
 use crate::model::positive_length;
 use crate::narrow::{FaceHit, closest_point_weights, front_distance, point_at};
@@ -169,18 +168,19 @@ pub(crate) fn closest_contact(group: &FaceGroup<'_>, had_contact: bool) -> Optio
     if !behind_some {
         return None;
     }
-    let closest = closest_distance(group)?;
+    let mut points = ClosestPoints::of(group);
+    let closest = closest_distance(&mut points)?;
     if closest > reach.depth_limit {
         return None;
     }
     // The faces whose closest points tie with the closest, each with its side.
     let tie = closest * (1.0 + TIE) + reach.slack;
     let mut chosen: Option<FaceContact> = None;
-    for (c, &s) in group.cands.iter().zip(group.signed) {
+    for (i, &s) in group.signed.iter().enumerate() {
         if s.abs() > tie {
             continue;
         }
-        let Some(contact) = face_contact(group, c) else {
+        let Some(contact) = face_contact(&mut points, i) else {
             continue;
         };
         if contact.hit.depth > tie {
@@ -203,6 +203,59 @@ pub(crate) fn closest_contact(group: &FaceGroup<'_>, had_contact: bool) -> Optio
 /// Relative tolerance of a tie between the closest points of two faces of a sheet.
 pub(crate) const TIE: f64 = 1e-3;
 
+/// Candidates of a group whose closest-point weights [`ClosestPoints`] keeps: a node has a
+/// few candidate faces on one sheet, rarely more.
+const KEPT: usize = 8;
+
+/// The closest points of a group's faces to its node, each computed once: the closest
+/// distance and the contact's choice look at the same faces, and a candidate past the
+/// first [`KEPT`] is computed each time it is asked for (the same value).
+struct ClosestPoints<'g, 'a> {
+    group: &'g FaceGroup<'a>,
+    /// Bit `i` set: `weights[i]` holds candidate `i`'s weights.
+    known: u32,
+    weights: [[f64; 3]; KEPT],
+}
+
+impl<'g, 'a> ClosestPoints<'g, 'a> {
+    fn of(group: &'g FaceGroup<'a>) -> Self {
+        ClosestPoints {
+            group,
+            known: 0,
+            weights: [[0.0; 3]; KEPT],
+        }
+    }
+
+    /// Candidate `i`'s face corners.
+    fn face(&self, i: usize) -> [[f64; 3]; 3] {
+        let positions = self.group.positions;
+        self.group.cands[i].nodes.map(|j| positions[j as usize])
+    }
+
+    /// The barycentric weights of the closest point of candidate `i`'s face (`face`).
+    fn weights(&mut self, i: usize, face: [[f64; 3]; 3]) -> [f64; 3] {
+        let bit = 1u32.checked_shl(i as u32).filter(|_| i < KEPT);
+        match bit {
+            Some(b) if self.known & b != 0 => self.weights[i],
+            _ => {
+                let w = closest_point_weights(self.group.x, face);
+                if let Some(b) = bit {
+                    self.weights[i] = w;
+                    self.known |= b;
+                }
+                w
+            }
+        }
+    }
+
+    /// The distance from the node to the closest point of candidate `i`'s face.
+    fn distance(&mut self, i: usize) -> f64 {
+        let face = self.face(i);
+        let q = point_at(self.weights(i, face), face);
+        norm2(sub(self.group.x, q)).sqrt()
+    }
+}
+
 /// The distance from the node to the closest point of the group's faces, or `None` when
 /// the node is certainly in front of the sheet or farther behind it than the depth limit.
 ///
@@ -211,16 +264,12 @@ pub(crate) const TIE: f64 = 1e-3;
 /// any contact. The faces the node is in front of matter only if one is nearer than
 /// `d_b`: by more than a tie, the node is in front of the sheet there; within a tie, the
 /// tie decides. Faces whose plane is farther than the best distance so far are skipped.
-fn closest_distance(group: &FaceGroup<'_>) -> Option<f64> {
-    let (x, positions, reach) = (group.x, group.positions, group.reach);
-    let distance = |c: &Candidate| {
-        let face = c.nodes.map(|j| positions[j as usize]);
-        norm2(sub(x, point_at(closest_point_weights(x, face), face))).sqrt()
-    };
+fn closest_distance(points: &mut ClosestPoints<'_, '_>) -> Option<f64> {
+    let (signed, reach) = (points.group.signed, points.group.reach);
     let mut behind: Option<f64> = None;
-    for (c, &s) in group.cands.iter().zip(group.signed) {
+    for (i, &s) in signed.iter().enumerate() {
         if s < 0.0 && reach.within(s) && behind.is_none_or(|b| -s <= b + reach.slack) {
-            let d = distance(c);
+            let d = points.distance(i);
             if d.is_finite() && behind.is_none_or(|b| d < b) {
                 behind = Some(d);
             }
@@ -228,9 +277,9 @@ fn closest_distance(group: &FaceGroup<'_>) -> Option<f64> {
     }
     let behind = behind.filter(|&b| b <= reach.depth_limit)?;
     let mut closest = behind;
-    for (c, &s) in group.cands.iter().zip(group.signed) {
+    for (i, &s) in signed.iter().enumerate() {
         if s >= 0.0 && s <= behind + reach.slack {
-            let d = distance(c);
+            let d = points.distance(i);
             if d * (1.0 + TIE) + reach.slack < behind {
                 return None;
             }
@@ -242,11 +291,13 @@ fn closest_distance(group: &FaceGroup<'_>) -> Option<f64> {
 
 /// The contact of the node with the closest point of one face: depth `|x - q|`, the node
 /// pushed towards `q` (along the face's pseudo-normal where `q = x`).
-fn face_contact(group: &FaceGroup<'_>, c: &Candidate) -> Option<FaceContact> {
+fn face_contact(points: &mut ClosestPoints<'_, '_>, i: usize) -> Option<FaceContact> {
+    let group = points.group;
+    let c = &group.cands[i];
     let x = group.x;
     let nodes = c.nodes.map(|j| j as usize);
-    let face = nodes.map(|j| group.positions[j]);
-    let weights = closest_point_weights(x, face);
+    let face = points.face(i);
+    let weights = points.weights(i, face);
     let to_q = sub(point_at(weights, face), x);
     let depth = norm(to_q);
     if !depth.is_finite() {
@@ -334,4 +385,63 @@ pub(crate) fn covered_in_front(group: &FaceGroup<'_>, depth: f64) -> bool {
             front_distance(x, face, depth).is_some()
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::broad::Candidate;
+    use crate::detect::Reach;
+
+    /// A fan of `n` faces around node 0, its rim slightly warped, and a node below it.
+    fn fan(n: u32) -> (Vec<[f64; 3]>, Vec<Candidate>) {
+        let mut positions = vec![[0.0; 3]];
+        for i in 0..n {
+            let a = std::f64::consts::TAU * f64::from(i) / f64::from(n);
+            positions.push([a.cos(), a.sin(), 0.05 * (3.0 * a).sin()]);
+        }
+        let cands = (0..n)
+            .map(|i| Candidate {
+                nodes: [0, 1 + i, 1 + (i + 1) % n],
+                triangle: i,
+                body: 1,
+            })
+            .collect();
+        (positions, cands)
+    }
+
+    #[test]
+    fn closest_points_are_those_of_each_face_asked_in_any_order() {
+        let n = 12;
+        let (positions, cands) = fan(n);
+        let signed = vec![0.0; cands.len()];
+        let outside = vec![false; cands.len()];
+        let group = FaceGroup {
+            x: [0.3, 0.2, -0.1],
+            body: 1,
+            cands: &cands,
+            signed: &signed,
+            outside: &outside,
+            positions: &positions,
+            reach: Reach {
+                depth_limit: 1.0,
+                slack: 0.0,
+            },
+        };
+        let mut points = ClosestPoints::of(&group);
+        // Kept and not kept candidates, each asked for more than once, out of order.
+        for i in [3, 11, 0, 3, 11, 9, 0, 10, 10, 7, 1, 2, 1] {
+            let face = cands[i].nodes.map(|j| positions[j as usize]);
+            let direct = closest_point_weights(group.x, face);
+            let kept = points.weights(i, points.face(i));
+            assert_eq!(
+                kept.map(f64::to_bits),
+                direct.map(f64::to_bits),
+                "candidate {i}"
+            );
+            let q = point_at(direct, face);
+            let d = norm2(sub(group.x, q)).sqrt();
+            assert_eq!(points.distance(i).to_bits(), d.to_bits(), "candidate {i}");
+        }
+    }
 }
