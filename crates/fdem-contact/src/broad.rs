@@ -198,11 +198,6 @@ pub(crate) struct BroadPhase {
     chunk_starts: Vec<Vec<usize>>,
     /// Number of candidate pairs of the last build.
     pub(crate) pairs: usize,
-    /// Per triangle, whether a candidate list may name it: every face of the lists is
-    /// marked; a face whose pairs a refresh dropped stays marked until the next build.
-    listed: Vec<bool>,
-    /// The faces the last refresh marked in `listed` that were not marked before it.
-    newly_listed: Vec<u32>,
     /// Per surface node and per triangle, whether the refresh under way renews them one by
     /// one ([`refresh::Dirt`]); all `false` between refreshes.
     single_nodes: Vec<bool>,
@@ -858,10 +853,7 @@ impl BroadPhase {
             cands.clear();
             cands.resize(running, Candidate::default());
         }
-        self.listed.clear();
-        self.listed.resize(surface.triangles.len(), false);
         for &(k, cand) in self.found.iter().flatten() {
-            self.listed[cand.triangle as usize] = true;
             let k = k as usize;
             let slot = &mut self.cursor[k];
             self.chunk_cands[k / CHUNK][*slot] = cand;
@@ -878,17 +870,6 @@ impl BroadPhase {
                     }
                 }
             });
-    }
-
-    /// Per triangle, whether a candidate list may name it (all `false` before the first
-    /// build): the faces whose planes the narrow phase reads.
-    pub(crate) fn listed_faces(&self) -> &[bool] {
-        &self.listed
-    }
-
-    /// The faces the last refresh added to [`BroadPhase::listed_faces`].
-    pub(crate) fn newly_listed_faces(&self) -> &[u32] {
-        &self.newly_listed
     }
 
     /// Candidate faces of surface node `k`.

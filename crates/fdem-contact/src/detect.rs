@@ -14,7 +14,9 @@ use crate::broad::{BroadPhase, CHUNK, Candidate};
 use crate::events::{Reason, Rejection};
 use crate::history::{Cursor, History};
 use crate::law::{LawInput, evaluate_law};
-use crate::model::{Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key};
+use crate::model::{
+    Counterpart, NodeContact, StepReach, TUNNELLING_FRACTION, history_key, unit_plane,
+};
 use crate::narrow::{FaceHit, ProjectionKernel, distance2_to_triangle, project_hand};
 use crate::prefetch::prefetch;
 use crate::rigid_frames::{NodeVelocities, RigidFrames, RigidMotion};
@@ -26,8 +28,8 @@ use crate::{ContactError, ContactSurface, NodeCoefficients, TunnellingScale, Wal
 /// Slack of the plane pre-filter of the narrow phase, as a fraction of the depth limit.
 const PLANE_SLACK: f64 = 1e-9;
 
-/// How many surface nodes ahead the narrow phase asks for its candidates' planes
-/// ([`Ctx::prefetch_planes`]).
+/// How many surface nodes ahead the narrow phase asks for its candidates' corners
+/// ([`Ctx::prefetch_faces`]).
 const PREFETCH_AHEAD: usize = 8;
 
 /// Relative slack of the test that a body is clear of the walls
@@ -199,8 +201,6 @@ pub(crate) struct Ctx<'a> {
     pub(crate) coefficients: &'a [NodeCoefficients],
     pub(crate) walls: &'a [Wall],
     pub(crate) wall_shapes: &'a [WallShape],
-    /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
-    pub(crate) planes: &'a [[f64; 4]],
     /// The contacts of the previous evaluation, chunk by chunk: the tangential history.
     pub(crate) previous: &'a History,
     pub(crate) kernel: ProjectionKernel,
@@ -219,8 +219,7 @@ pub(crate) struct Ctx<'a> {
     /// Whether to check each node against the walls' velocities for tunnelling.
     pub(crate) check_walls: bool,
     pub(crate) sheets: &'a Sheets,
-    /// The rigid bodies' frames, when they stand in for their faces' world planes (then
-    /// `planes` has no plane of this evaluation for those faces).
+    /// The rigid bodies' frames, when they stand in for their faces' world planes.
     pub(crate) frames: Option<&'a RigidFrames>,
     /// Whether to record the rejections of the stored-energy jump log.
     pub(crate) diagnose: bool,
@@ -280,7 +279,7 @@ impl Ctx<'_> {
         for k in start..end {
             if k + PREFETCH_AHEAD < end {
                 let ahead = k + PREFETCH_AHEAD;
-                self.prefetch_planes(ahead, lists.of(ahead - start));
+                self.prefetch_faces(ahead, lists.of(ahead - start));
             }
             let cands = lists.of(k - start);
             if cands.is_empty() && (self.clear_of_walls(k) || self.touches_no_wall(k)) {
@@ -320,22 +319,18 @@ impl Ctx<'_> {
             .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| behind_wall(d)))
     }
 
-    /// Asks the memory system for the planes of surface node `k`'s candidates `cands`, their
-    /// corners' positions and, when it has candidates, the node's contact coefficients.
-    /// The planes are rewritten every evaluation and the candidates' faces lie on other
-    /// bodies, anywhere in the array; the coefficients of the few nodes with contacts are
-    /// read far apart: without a hint each waits for a cache miss. A hint changes no
-    /// value.
+    /// Asks the memory system for the corners' positions of surface node `k`'s candidates
+    /// `cands` and, when it has candidates, the node's contact coefficients. The
+    /// candidates' faces lie on other bodies, anywhere in the array; the coefficients of
+    /// the few nodes with contacts are read far apart: without a hint each waits for a
+    /// cache miss. A hint changes no value.
     #[inline(always)]
-    fn prefetch_planes(&self, k: usize, cands: &[Candidate]) {
+    fn prefetch_faces(&self, k: usize, cands: &[Candidate]) {
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
         }
         for c in cands {
-            if !self.frames.is_some_and(|f| f.has(c.body)) {
-                prefetch(self.planes, c.triangle as usize);
-            }
             for &j in &c.nodes {
                 prefetch(self.positions, j as usize);
             }
@@ -365,10 +360,11 @@ impl Ctx<'_> {
     }
 
     /// Signed distances of `x` to the candidates' planes (positive in front) into `signed`,
-    /// and into `outside` whether a candidate's foot was screened out: from the world
-    /// planes (nothing screened), or for a rigid body with a frame from its template's
-    /// planes and barycentric maps (`crate::rigid_frames`; the candidates come grouped by
-    /// body).
+    /// and into `outside` whether a candidate's foot was screened out: from the faces'
+    /// planes at these positions ([`unit_plane`] of the corners, which the hint of
+    /// [`Ctx::prefetch_faces`] brought in; nothing screened), or for a rigid body with a
+    /// frame from its template's planes and barycentric maps (`crate::rigid_frames`; the
+    /// candidates come grouped by body).
     fn signed_distances(
         &self,
         x: [f64; 3],
@@ -379,7 +375,7 @@ impl Ctx<'_> {
         signed.clear();
         outside.clear();
         let world = |c: &Candidate| {
-            let [nx, ny, nz, offset] = self.planes[c.triangle as usize];
+            let [nx, ny, nz, offset] = unit_plane(c.nodes.map(|j| self.positions[j as usize]));
             nx * x[0] + ny * x[1] + nz * x[2] - offset
         };
         let Some(frames) = self.frames else {

@@ -147,57 +147,6 @@ pub(crate) fn unit_plane(face: [[f64; 3]; 3]) -> [f64; 4] {
     }
 }
 
-/// The unit normal and plane offset at `positions` of every face marked in `listed` (the
-/// faces the candidate lists may name) into `planes`, indexed by triangle, but for the
-/// faces of rigid bodies with a frame in `frames` (the narrow phase reads their template's
-/// planes); the others are left as they were (no candidate reads them). An empty `listed`
-/// (before the first build) computes none.
-fn face_planes(
-    planes: &mut Vec<[f64; 4]>,
-    surface: &ContactSurface,
-    positions: &[[f64; 3]],
-    listed: &[bool],
-    frames: Option<&RigidFrames>,
-) {
-    let triangles = &surface.triangles;
-    planes.resize(triangles.len(), [0.0; 4]);
-    if listed.is_empty() {
-        return;
-    }
-    let plane = |t: usize| unit_plane(triangles[t].map(|i| positions[i]));
-    let Some(frames) = frames else {
-        planes
-            .par_iter_mut()
-            .zip(listed.par_iter())
-            .enumerate()
-            .with_min_len(CHUNK)
-            .for_each(|(t, (p, &listed))| {
-                if listed {
-                    *p = plane(t);
-                }
-            });
-        return;
-    };
-    // Only the faces outside the frames, in pieces of consecutive faces (a specimen's
-    // rigid particles would otherwise cost a pass over all their faces to skip them).
-    let mut pieces = Vec::with_capacity(frames.unframed_faces().len());
-    let mut rest: &mut [[f64; 4]] = planes;
-    let mut offset = 0;
-    for r in frames.unframed_faces() {
-        let (_, tail) = std::mem::take(&mut rest).split_at_mut(r.start - offset);
-        let (piece, tail) = tail.split_at_mut(r.len());
-        pieces.push((r.start, piece));
-        (rest, offset) = (tail, r.end);
-    }
-    pieces.into_par_iter().for_each(|(start, piece)| {
-        for (t, p) in (start..).zip(piece) {
-            if listed[t] {
-                *p = plane(t);
-            }
-        }
-    });
-}
-
 /// The frames, when they stand in for the world planes in this evaluation (`active`). A
 /// function of the two fields, not of the model, so that it borrows only them.
 fn active_frames(frames: &Option<RigidFrames>, active: bool) -> Option<&RigidFrames> {
@@ -464,8 +413,6 @@ pub struct ContactModel {
     clear_of_walls: Vec<bool>,
     wall_shapes: Vec<WallShape>,
     wall_forces: Vec<[f64; 3]>,
-    /// Per triangle, this evaluation's unit normal and plane offset `[n, n . a]`.
-    planes: Vec<[f64; 4]>,
     report: ContactReport,
     /// The sheet bodies and their fold depth (`set_sheet_bodies`).
     sheets: Sheets,
@@ -664,7 +611,6 @@ impl ContactModel {
             chunks: vec![ChunkScratch::default(); n_chunks],
             clear_of_walls: Vec::new(),
             wall_shapes: Vec::with_capacity(walls.len()),
-            planes: Vec::new(),
             wall_forces: vec![[0.0; 3]; walls.len()],
             report: ContactReport::default(),
             walls,
@@ -1415,34 +1361,16 @@ impl ContactModel {
         self.check_length("velocities", velocities.len())?;
 
         // Pass 1: finiteness, Verlet-skin drift, fastest node (a fastest node too fast for
-        // the depth limit grows it, within its cap); beside it, the planes of the faces
-        // the candidate lists name (they depend on the positions alone; a renewal of the
-        // lists below computes those of the new lists).
+        // the depth limit grows it, within its cap).
         let expected = self.expected_motion(time);
         let slack = crate::detect::plane_slack(self.depth_limit);
         self.frames_active = self
             .rigid_frames
             .as_ref()
             .is_some_and(|f| f.usable(time, slack));
-        let mut planes = std::mem::take(&mut self.planes);
-        let frames = active_frames(&self.rigid_frames, self.frames_active);
         let allowance = self.drift_allowance().drift;
-        let (scan, ()) = rayon::join(
-            || {
-                let limits = (allowance, time, dt);
-                self.scan(positions, velocities, expected.as_ref(), limits)
-            },
-            || {
-                face_planes(
-                    &mut planes,
-                    &self.surface,
-                    positions,
-                    self.broad.listed_faces(),
-                    frames,
-                )
-            },
-        );
-        self.planes = planes;
+        let limits = (allowance, time, dt);
+        let scan = self.scan(positions, velocities, expected.as_ref(), limits);
         self.wall_shapes.clear();
         self.wall_shapes
             .extend(self.walls.iter().map(|w| w.shape_at(time)));
@@ -1459,7 +1387,7 @@ impl ContactModel {
             expected,
             time,
         };
-        let mut renewal = self.renew_if_due(positions, drift);
+        let mut renewal = self.rebuild_if_due(positions, drift);
 
         // Pass 2: narrow phase and law, in parallel over fixed chunks of surface nodes; a
         // contact too deep for the depth limit, or a node moving too far relative to a
@@ -1471,7 +1399,7 @@ impl ContactModel {
                 Err(e) if let Some(grown) = self.grown_for(&e) => {
                     self.depth_limit = grown;
                     self.rebuild_requested = true;
-                    match self.renew_if_due(positions, drift) {
+                    match self.rebuild_if_due(positions, drift) {
                         Renewal::None => {}
                         again => renewal = again,
                     }
@@ -1687,34 +1615,6 @@ impl ContactModel {
         self.sheets.listing_depth(self.depth_limit, reach.sheet)
     }
 
-    /// [`ContactModel::rebuild_if_due`], then the planes of the faces new to the lists (a
-    /// face new to the lists has no plane of this step yet): after a refresh those it
-    /// added, after a full build every listed face.
-    fn renew_if_due(&mut self, positions: &[[f64; 3]], drift: Drift) -> Renewal {
-        let renewal = self.rebuild_if_due(positions, drift);
-        let surface = &self.surface;
-        let frames = active_frames(&self.rigid_frames, self.frames_active);
-        match renewal {
-            Renewal::None => {}
-            Renewal::Refresh { .. } => {
-                for &t in self.broad.newly_listed_faces() {
-                    let t = t as usize;
-                    if !frames.is_some_and(|f| f.has(surface.triangle_body[t])) {
-                        self.planes[t] = unit_plane(surface.triangles[t].map(|i| positions[i]));
-                    }
-                }
-            }
-            Renewal::Full => face_planes(
-                &mut self.planes,
-                surface,
-                positions,
-                self.broad.listed_faces(),
-                frames,
-            ),
-        }
-        renewal
-    }
-
     /// Rebuilds the broad phase when asked to, before the first evaluation, when the mean
     /// motion's distortion has used up the allowance, or when a surface node has drifted
     /// farther than the allowance (half the margin without mean motion); in the last case
@@ -1844,7 +1744,6 @@ impl ContactModel {
             coefficients: &self.coefficients,
             walls: &self.walls,
             wall_shapes: &self.wall_shapes,
-            planes: &self.planes,
             previous: &self.history,
             kernel: self.kernel,
             positions,

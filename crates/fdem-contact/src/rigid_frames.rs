@@ -7,8 +7,8 @@
 //! coordinates are `u = A^-1 (x - origin)` (one transform per node and body) and its
 //! signed distance is `s (n . u - d)` with the template face's plane `(n, d)`. Every
 //! instance of a template shares those planes (a few kilobytes that stay in cache),
-//! where the world planes are rewritten every step and gathered with a cache miss per
-//! candidate.
+//! where a world plane is computed from the face's corners, gathered with a cache miss
+//! per candidate.
 //!
 //! The same frame screens the foot of the perpendicular: the barycentric coordinates of
 //! the foot are affine functions of the node's position, unchanged by a rotation, a

@@ -697,13 +697,7 @@ impl BroadPhase {
     ) {
         let n = surface.surface_nodes.len();
         let mut new_by_chunk: Vec<Vec<(u32, Candidate)>> = vec![Vec::new(); n.div_ceil(CHUNK)];
-        self.newly_listed.clear();
         for &(k, c) in found.iter().flatten() {
-            let listed = &mut self.listed[c.triangle as usize];
-            if !*listed {
-                *listed = true;
-                self.newly_listed.push(c.triangle);
-            }
             new_by_chunk[k as usize / CHUNK].push((k, c));
         }
         let node_body = &surface.node_body;
