@@ -157,7 +157,9 @@ impl CellTable {
 /// hot loop reads it sequentially instead of chasing triangle -> body -> node ids).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Candidate {
-    /// Global node ids of the face.
+    /// Global node ids of the face, in the order of `ContactSurface::triangles`: the narrow
+    /// phase computes the face's plane from them (`model::unit_plane`), so the order sets
+    /// the normal's side and the plane's bits.
     pub(crate) nodes: [u32; 3],
     /// Triangle index.
     pub(crate) triangle: u32,
