@@ -226,33 +226,29 @@ impl<'g, 'a> ClosestPoints<'g, 'a> {
         }
     }
 
-    /// Candidate `i`'s face corners.
-    fn face(&self, i: usize) -> [[f64; 3]; 3] {
+    /// Candidate `i`'s face corners, and the barycentric weights of the face's closest
+    /// point to the node.
+    fn closest(&mut self, i: usize) -> ([[f64; 3]; 3], [f64; 3]) {
         let positions = self.group.positions;
-        self.group.cands[i].nodes.map(|j| positions[j as usize])
-    }
-
-    /// The barycentric weights of the closest point of candidate `i`'s face (`face`).
-    fn weights(&mut self, i: usize, face: [[f64; 3]; 3]) -> [f64; 3] {
-        let bit = 1u32.checked_shl(i as u32).filter(|_| i < KEPT);
+        let face = self.group.cands[i].nodes.map(|j| positions[j as usize]);
+        let bit = (i < KEPT).then(|| 1u32 << i);
         match bit {
-            Some(b) if self.known & b != 0 => self.weights[i],
+            Some(b) if self.known & b != 0 => (face, self.weights[i]),
             _ => {
                 let w = closest_point_weights(self.group.x, face);
                 if let Some(b) = bit {
                     self.weights[i] = w;
                     self.known |= b;
                 }
-                w
+                (face, w)
             }
         }
     }
 
     /// The distance from the node to the closest point of candidate `i`'s face.
     fn distance(&mut self, i: usize) -> f64 {
-        let face = self.face(i);
-        let q = point_at(self.weights(i, face), face);
-        norm2(sub(self.group.x, q)).sqrt()
+        let (face, weights) = self.closest(i);
+        norm2(sub(self.group.x, point_at(weights, face))).sqrt()
     }
 }
 
@@ -296,8 +292,7 @@ fn face_contact(points: &mut ClosestPoints<'_, '_>, i: usize) -> Option<FaceCont
     let c = &group.cands[i];
     let x = group.x;
     let nodes = c.nodes.map(|j| j as usize);
-    let face = points.face(i);
-    let weights = points.weights(i, face);
+    let (face, weights) = points.closest(i);
     let to_q = sub(point_at(weights, face), x);
     let depth = norm(to_q);
     if !depth.is_finite() {
@@ -433,7 +428,8 @@ mod tests {
         for i in [3, 11, 0, 3, 11, 9, 0, 10, 10, 7, 1, 2, 1] {
             let face = cands[i].nodes.map(|j| positions[j as usize]);
             let direct = closest_point_weights(group.x, face);
-            let kept = points.weights(i, points.face(i));
+            let (kept_face, kept) = points.closest(i);
+            assert_eq!(kept_face, face, "candidate {i}");
             assert_eq!(
                 kept.map(f64::to_bits),
                 direct.map(f64::to_bits),
