@@ -4,6 +4,7 @@ pub mod coarsen;
 pub mod compare;
 pub mod mesh;
 pub mod micro;
+pub mod progress;
 pub mod run;
 pub mod scale;
 pub mod specimen;

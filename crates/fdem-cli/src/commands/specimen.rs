@@ -1,13 +1,14 @@
 //! `fdem specimen`: the paper's test catalogue and user specimens: counts, preparation by
 //! the dynamic method, and prepared-specimen files (docs/SPECIMENS.md).
 
+use crate::commands::progress::{Pace, phase_bar, steps_done};
 use anyhow::bail;
 use fdem_mesh::ElementOrder;
 use fdem_triaxial::{
     Counts, Observer, PRESETS, Phase, PreparationReport, PreparedSpecimen, Preset, SpecimenSpec,
     Status, prepare,
 };
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use serde_json::json;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -123,26 +124,18 @@ pub struct SpecimenArgs {
     pub(crate) threads: Option<usize>,
 }
 
-/// A progress bar over `planned_steps` steps of a phase, with elapsed time and estimate.
-pub fn phase_bar(planned_steps: u64, prefix: &'static str) -> ProgressBar {
-    let bar = ProgressBar::new(planned_steps);
-    if let Ok(style) = ProgressStyle::with_template(
-        "{prefix:>13} [{elapsed_precise}] {bar:40} {pos}/{len} steps (eta {eta}) {msg}",
-    ) {
-        bar.set_style(style);
-    }
-    bar.set_prefix(prefix);
-    bar
-}
-
-/// Progress of a preparation on stderr: one line per phase, and a bar with an estimate on
-/// a terminal.
+/// Progress of a preparation on stderr: one line per phase, the compaction's cost once
+/// measured, and a bar on a terminal or otherwise a line every
+/// [`crate::commands::progress::LINE_INTERVAL`] with the phase's pace and what is left.
 pub struct PreparationProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
     interrupt: Arc<AtomicBool>,
     /// The compaction's planned steps and start, until its cost estimate is printed.
     compaction: Option<(u64, std::time::Instant)>,
+    /// The phase's planned steps (the most it may take when it can end early) and pace.
+    planned: u64,
+    pace: Option<Pace>,
 }
 
 /// Steps of compaction timed before its cost estimate is printed.
@@ -156,6 +149,8 @@ impl PreparationProgress {
             terminal,
             interrupt,
             compaction: None,
+            planned: 0,
+            pace: None,
         }
     }
 
@@ -165,6 +160,26 @@ impl PreparationProgress {
             bar.finish_and_clear();
         }
     }
+
+    /// A line above the bar, or on stderr without one.
+    fn println(&self, line: String) {
+        match &self.bar {
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+}
+
+/// `gap 0.1234 m, 5321 contacts` (and the unbalanced force while settling).
+fn preparation_state(status: &Status) -> String {
+    let mut state = format!(
+        "gap {:.4} m, {} contacts",
+        status.platen_gap, status.contacts
+    );
+    if let Some(r) = status.unbalanced_force {
+        state.push_str(&format!(", unbalanced {r:.2e}"));
+    }
+    state
 }
 
 impl Observer for PreparationProgress {
@@ -178,6 +193,7 @@ impl Observer for PreparationProgress {
             }
             Phase::Settle => eprintln!("settle: at most {planned_steps} steps"),
         }
+        (self.planned, self.pace) = (planned_steps, None);
         if self.terminal && planned_steps > 0 {
             self.bar = Some(phase_bar(planned_steps, phase.name()));
         }
@@ -190,26 +206,28 @@ impl Observer for PreparationProgress {
             && let Some((planned, start)) = self.compaction.take()
         {
             let per_step = start.elapsed().as_secs_f64() / status.step as f64;
-            let line = format!(
+            self.println(format!(
                 "compact: {:.2} ms per step, about {:.0} s for the compaction",
                 1e3 * per_step,
                 per_step * planned as f64
-            );
-            match &self.bar {
-                Some(bar) => bar.println(line),
-                None => eprintln!("{line}"),
-            }
+            ));
         }
+        let state = preparation_state(status);
+        let planned = self.planned;
+        let pace = self.pace.get_or_insert_with(|| Pace::new(status.step));
         if let Some(bar) = &self.bar {
             bar.set_position(status.step);
-            let mut msg = format!(
-                "gap {:.4} m, {} contacts",
-                status.platen_gap, status.contacts
+            bar.set_message(state);
+        } else if pace.line_due() {
+            let bound = match phase {
+                Phase::Settle => "at most ",
+                Phase::Place | Phase::Compact => "about ",
+            };
+            eprintln!(
+                "{}, {state}{}",
+                steps_done(phase.name(), status.step, planned),
+                pace.left(status.step, planned, bound)
             );
-            if let Some(r) = status.unbalanced_force {
-                msg.push_str(&format!(", unbalanced {r:.2e}"));
-            }
-            bar.set_message(msg);
         }
         !self.interrupt.load(Ordering::SeqCst)
     }

@@ -1,9 +1,9 @@
 //! `fdem stability`: stability maps of the step, the penalty and the damping for rigid,
 //! linear and quadratic particles (docs/STABILITY.md).
 
+use crate::commands::progress::duration;
 use crate::commands::specimen::PreparationProgress;
 use crate::commands::study::StudyProgress;
-use crate::commands::triaxial::duration;
 use fdem_study::limits::{compare_elements, run_limits};
 use fdem_study::stability::{MapSpec, run_map, write_stability};
 use std::io::IsTerminal;

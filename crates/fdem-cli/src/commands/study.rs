@@ -2,8 +2,9 @@
 //! seeds, each run reused when finished, then `RESULTS.md`, `results/runs.csv` and the
 //! charts.
 
+use crate::commands::progress::duration;
 use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress};
-use crate::commands::triaxial::{TestProgress, check_strain, duration};
+use crate::commands::triaxial::{TestProgress, check_strain};
 use anyhow::bail;
 use fdem_study::run::PlannedRun;
 use fdem_study::{

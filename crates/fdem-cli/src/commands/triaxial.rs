@@ -1,7 +1,8 @@
 //! `fdem triaxial`: the numerical triaxial test end to end (docs/TRIAXIAL.md): prepare
 //! the specimen (or reuse a prepared one), consolidate, shear, write the outputs.
 
-use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, phase_bar, preset_spec};
+use crate::commands::progress::{Pace, duration, phase_bar, steps_done};
+use crate::commands::specimen::{ModelArg, OrderArg, PreparationProgress, preset_spec};
 use anyhow::{Context, bail};
 use fdem_triaxial::{
     Cached, PreparedSpecimen, SpecimenSpec, TestObserver, TestOptions, TestPhase, TestPlan,
@@ -12,7 +13,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// File name of the prepared specimen kept in the output directory for reuse.
 const PREPARED_FILE: &str = "specimen.fdemspec";
@@ -105,39 +106,14 @@ fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
 }
 
 /// Progress of the test on stderr: the plan, one line per phase, a bar on a terminal and
-/// otherwise a line every [`LINE_INTERVAL`] with an estimate from the phase's own steps.
+/// otherwise a line every [`crate::commands::progress::LINE_INTERVAL`] with an estimate
+/// from the phase's own steps.
 pub(crate) struct TestProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
     interrupt: Arc<AtomicBool>,
     /// The phase's first report (steps then, when) and the last line printed.
     pace: Option<Pace>,
-}
-
-/// How often a line of progress is printed when stderr is not a terminal (a log file).
-const LINE_INTERVAL: Duration = Duration::from_secs(60);
-
-/// The rate of a phase measured from its own steps in this process, so that a resumed
-/// phase is estimated from what it costs now, not from the plan's calibration.
-struct Pace {
-    first: (u64, Instant),
-    last_line: Instant,
-}
-
-impl Pace {
-    fn new(steps: u64) -> Self {
-        let now = Instant::now();
-        Pace {
-            first: (steps, now),
-            last_line: now,
-        }
-    }
-
-    /// Seconds per step since the first report, once a step has been done.
-    fn seconds_per_step(&self, steps: u64) -> Option<f64> {
-        let done = steps.checked_sub(self.first.0).filter(|&d| d > 0)?;
-        Some(self.first.1.elapsed().as_secs_f64() / done as f64)
-    }
 }
 
 impl TestProgress {
@@ -244,8 +220,7 @@ impl TestObserver for TestProgress {
         if let Some(bar) = &self.bar {
             bar.set_position(status.steps);
             bar.set_message(state);
-        } else if pace.last_line.elapsed() >= LINE_INTERVAL {
-            pace.last_line = Instant::now();
+        } else if pace.line_due() {
             eprintln!("{}", progress_line(status, pace, &state));
         }
         !self.interrupt.load(Ordering::SeqCst)
@@ -255,38 +230,15 @@ impl TestObserver for TestProgress {
 /// `shear: 45000 / 58384 steps (77 %), eps_a = 11.6 %, eta = 0.712; 0.21 s/step here,
 /// about 47 min left` (for consolidation, `at most` that long).
 fn progress_line(status: &TestStatus, pace: &Pace, state: &str) -> String {
-    let mut line = format!(
-        "{}: {} / {} steps ({:.0} %), {state}",
-        status.phase.name(),
-        status.steps,
-        status.planned_steps,
-        100.0 * status.steps as f64 / status.planned_steps.max(1) as f64,
-    );
-    if let Some(rate) = pace.seconds_per_step(status.steps) {
-        let left = rate * status.planned_steps.saturating_sub(status.steps) as f64;
-        let bound = match status.phase {
-            TestPhase::Consolidation => "at most ",
-            TestPhase::Shear => "about ",
-        };
-        let pace = if rate >= 0.1 {
-            format!("{rate:.2} s/step")
-        } else {
-            format!("{:.3} ms/step", 1e3 * rate)
-        };
-        line += &format!("; {pace} here, {bound}{} left", duration(left));
-    }
-    line
-}
-
-pub(crate) fn duration(seconds: f64) -> String {
-    if !seconds.is_finite() {
-        return "unknown".into();
-    }
-    if seconds < 120.0 {
-        format!("{seconds:.0} s")
-    } else {
-        format!("{:.1} min", seconds / 60.0)
-    }
+    let bound = match status.phase {
+        TestPhase::Consolidation => "at most ",
+        TestPhase::Shear => "about ",
+    };
+    format!(
+        "{}, {state}{}",
+        steps_done(status.phase.name(), status.steps, status.planned_steps),
+        pace.left(status.steps, status.planned_steps, bound)
+    )
 }
 
 /// The prepared specimen: the given file, the reusable one in the output directory, or a
