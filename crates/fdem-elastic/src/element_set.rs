@@ -62,6 +62,85 @@ enum Elements {
     Quadratic(Vec<TetRef<10>>),
 }
 
+/// Lumped nodal masses, kg, of a body's mesh (one entry per rest position): the values
+/// and errors of [`ElementSet::new`] followed by [`ElementSet::lumped_masses`], without the
+/// rest of a set (each element's stable step, the lane kernel's blocks). A rigid body's
+/// nodes need only these.
+pub fn lumped_masses(
+    material: &Material,
+    nodes_per_element: usize,
+    rest_positions: &[[f64; 3]],
+    connectivity: &[usize],
+) -> Result<Vec<f64>, ElasticError> {
+    let (_, elements) =
+        checked_elements(material, nodes_per_element, rest_positions, connectivity)?;
+    Ok(lumped(&elements, material.density, rest_positions.len()))
+}
+
+/// The checks of [`ElementSet::new`] and its elements' reference data.
+fn checked_elements(
+    material: &Material,
+    nodes_per_element: usize,
+    rest_positions: &[[f64; 3]],
+    connectivity: &[usize],
+) -> Result<(TetKind, Elements), ElasticError> {
+    material.validate()?;
+    let kind = TetKind::from_nodes_per_element(nodes_per_element)?;
+    if !connectivity.len().is_multiple_of(nodes_per_element) {
+        return Err(ElasticError::ConnectivityLength {
+            len: connectivity.len(),
+            nodes_per_element,
+        });
+    }
+    let n_nodes = rest_positions.len();
+    if n_nodes > u32::MAX as usize {
+        return Err(ElasticError::TooManyNodes {
+            n_nodes,
+            max: u32::MAX as usize,
+        });
+    }
+    for (node, p) in rest_positions.iter().enumerate() {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(ElasticError::NonFiniteRestPosition { node, position: *p });
+        }
+    }
+    let elements = match kind {
+        TetKind::Linear4 => Elements::Linear(build::<4>(rest_positions, connectivity)?),
+        TetKind::Quadratic10 => Elements::Quadratic(build::<10>(rest_positions, connectivity)?),
+    };
+    Ok((kind, elements))
+}
+
+/// Lumped nodal masses of `elements` of density `rho`, `len` entries (see
+/// [`ElementSet::lumped_masses`]).
+fn lumped(elements: &Elements, rho: f64, len: usize) -> Vec<f64> {
+    let mut m = vec![0.0; len];
+    match elements {
+        Elements::Linear(els) => {
+            for el in els {
+                let share = 0.25 * rho * el.volume;
+                for &n in &el.nodes {
+                    m[n as usize] += share;
+                }
+            }
+        }
+        Elements::Quadratic(els) => {
+            for el in els {
+                let me = rho * el.volume;
+                for (i, &n) in el.nodes.iter().enumerate() {
+                    m[n as usize] += me
+                        * if i < 4 {
+                            HRZ_CORNER_FRACTION
+                        } else {
+                            HRZ_MID_EDGE_FRACTION
+                        };
+                }
+            }
+        }
+    }
+    m
+}
+
 /// All elements of one body (particle, membrane, ...), with reference data precomputed
 /// once: shape-function gradients, volumes, lumped masses and the per-element stable time
 /// step. Node ids are body-local: indices into the node slice passed to every method.
@@ -115,47 +194,21 @@ impl ElementSet {
         rest_positions: &[[f64; 3]],
         connectivity: &[usize],
     ) -> Result<Self, ElasticError> {
-        material.validate()?;
-        let kind = TetKind::from_nodes_per_element(nodes_per_element)?;
-        if !connectivity.len().is_multiple_of(nodes_per_element) {
-            return Err(ElasticError::ConnectivityLength {
-                len: connectivity.len(),
-                nodes_per_element,
-            });
-        }
-        let n_nodes = rest_positions.len();
-        if n_nodes > u32::MAX as usize {
-            return Err(ElasticError::TooManyNodes {
-                n_nodes,
-                max: u32::MAX as usize,
-            });
-        }
-        for (node, p) in rest_positions.iter().enumerate() {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err(ElasticError::NonFiniteRestPosition { node, position: *p });
-            }
-        }
+        let (kind, elements) =
+            checked_elements(material, nodes_per_element, rest_positions, connectivity)?;
         let lame = Lame {
             lambda: material.lame_lambda(),
             mu: material.shear_modulus(),
         };
-        let (elements, time_steps) = match kind {
-            TetKind::Linear4 => {
-                let els = build::<4>(rest_positions, connectivity)?;
-                let dts: Vec<f64> = els
-                    .iter()
-                    .map(|el| element_time_step(el, lame, material.density))
-                    .collect();
-                (Elements::Linear(els), dts)
-            }
-            TetKind::Quadratic10 => {
-                let els = build::<10>(rest_positions, connectivity)?;
-                let dts: Vec<f64> = els
-                    .iter()
-                    .map(|el| element_time_step(el, lame, material.density))
-                    .collect();
-                (Elements::Quadratic(els), dts)
-            }
+        let time_steps: Vec<f64> = match &elements {
+            Elements::Linear(els) => els
+                .iter()
+                .map(|el| element_time_step(el, lame, material.density))
+                .collect(),
+            Elements::Quadratic(els) => els
+                .iter()
+                .map(|el| element_time_step(el, lame, material.density))
+                .collect(),
         };
         let stable_time_step = time_steps.iter().copied().fold(f64::INFINITY, f64::min);
         let (blocks4, blocks10) = match &elements {
@@ -166,7 +219,7 @@ impl ElementSet {
             material: *material,
             lame,
             kind,
-            n_nodes,
+            n_nodes: rest_positions.len(),
             elements,
             blocks4,
             blocks10,
@@ -228,32 +281,11 @@ impl ElementSet {
     /// ([`HRZ_CORNER_FRACTION`], [`HRZ_MID_EDGE_FRACTION`]). Every used node gets a strictly
     /// positive mass and the masses sum to the body mass.
     pub fn lumped_masses(&self, n_nodes: usize) -> Vec<f64> {
-        let mut m = vec![0.0; n_nodes.max(self.n_nodes)];
-        let rho = self.material.density;
-        match &self.elements {
-            Elements::Linear(els) => {
-                for el in els {
-                    let share = 0.25 * rho * el.volume;
-                    for &n in &el.nodes {
-                        m[n as usize] += share;
-                    }
-                }
-            }
-            Elements::Quadratic(els) => {
-                for el in els {
-                    let me = rho * el.volume;
-                    for (i, &n) in el.nodes.iter().enumerate() {
-                        m[n as usize] += me
-                            * if i < 4 {
-                                HRZ_CORNER_FRACTION
-                            } else {
-                                HRZ_MID_EDGE_FRACTION
-                            };
-                    }
-                }
-            }
-        }
-        m
+        lumped(
+            &self.elements,
+            self.material.density,
+            n_nodes.max(self.n_nodes),
+        )
     }
 
     /// Stable time step of central differences for the elastic elements, s:

@@ -59,7 +59,9 @@ mod modes;
 pub mod polar;
 
 pub use assembled_step::{ASSEMBLED_STEP_MAX_ITERATIONS, ASSEMBLED_STEP_TOLERANCE, AssembledStep};
-pub use element_set::{ElementSet, HRZ_CORNER_FRACTION, HRZ_MID_EDGE_FRACTION, TetKind};
+pub use element_set::{
+    ElementSet, HRZ_CORNER_FRACTION, HRZ_MID_EDGE_FRACTION, TetKind, lumped_masses,
+};
 pub use error::ElasticError;
 pub use lamb::lamb_spheroidal_frequency;
 pub use mat3::Mat3;

@@ -297,9 +297,9 @@ impl ModelBuilder {
             SolverError::InvalidScene(m) => SolverError::InvalidScene(format!("body {id}: {m}")),
             other => other,
         })?;
-        let set = fdem_elastic::ElementSet::new(material, npe, &one.nodes, &one.elements)
+        // A rigid body's nodes need their masses only, not an elastic element set.
+        let lumped = fdem_elastic::lumped_masses(material, npe, &one.nodes, &one.elements)
             .map_err(|source| SolverError::Elastic { body: id, source })?;
-        let lumped = set.lumped_masses(one.n_nodes());
         // The body's nodes are the surface nodes, renumbered in their surface order.
         let mut local = vec![usize::MAX; one.n_nodes()];
         for (k, &n) in one.surface_nodes.iter().enumerate() {

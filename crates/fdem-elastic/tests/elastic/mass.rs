@@ -2,7 +2,7 @@
 
 use fdem_elastic::{HRZ_CORNER_FRACTION, HRZ_MID_EDGE_FRACTION};
 
-use crate::common::{RHO, kuhn_cube, single_tet};
+use crate::common::{RHO, kuhn_cube, rock, single_tet};
 
 #[test]
 fn lumped_masses_are_positive_and_sum_to_rho_v() {
@@ -67,4 +67,30 @@ fn hrz_fractions_follow_from_the_consistent_mass_diagonal() {
     assert!((HRZ_CORNER_FRACTION - corner / total).abs() < 1e-15);
     assert!((HRZ_MID_EDGE_FRACTION - mid / total).abs() < 1e-15);
     assert!((4.0 * HRZ_CORNER_FRACTION + 6.0 * HRZ_MID_EDGE_FRACTION - 1.0).abs() < 1e-15);
+}
+
+/// The masses without a set are the set's, bit for bit, and a mesh the set refuses is
+/// refused with the same error.
+#[test]
+fn lumped_masses_without_a_set_are_the_sets() {
+    for quadratic in [false, true] {
+        for mesh in [kuhn_cube(2, 3e-3, quadratic), single_tet(quadratic)] {
+            let set = mesh.element_set();
+            let npe = set.nodes_per_element();
+            let alone = fdem_elastic::lumped_masses(&rock(), npe, &mesh.nodes, &mesh.conn)
+                .expect("a valid mesh");
+            let from_set = set.lumped_masses(mesh.nodes.len());
+            let bits = |m: &[f64]| m.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&alone), bits(&from_set));
+        }
+    }
+    let mut flipped = single_tet(false);
+    flipped.conn.swap(0, 1);
+    let npe = 4;
+    let set = fdem_elastic::ElementSet::new(&rock(), npe, &flipped.nodes, &flipped.conn);
+    let alone = fdem_elastic::lumped_masses(&rock(), npe, &flipped.nodes, &flipped.conn);
+    assert_eq!(
+        alone.expect_err("an inverted element").to_string(),
+        set.expect_err("an inverted element").to_string()
+    );
 }
