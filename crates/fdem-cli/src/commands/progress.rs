@@ -19,53 +19,57 @@ pub fn phase_bar(planned_steps: u64, prefix: &'static str) -> ProgressBar {
     bar
 }
 
-/// The rate of a phase measured from its own steps in this process, so that a resumed
-/// phase is estimated from what it costs now, not from a plan's calibration.
+/// The rate of a phase over its latest steps in this process: since the last line, or
+/// since the phase's first report before any line. A phase whose steps grow dearer (a
+/// packing that gains contacts) is then estimated at its current cost, and a resumed
+/// phase at what it costs now, not at a plan's calibration.
 pub(crate) struct Pace {
-    first: (u64, Instant),
-    last_line: Instant,
+    /// Steps and time of the last line (or of the phase's first report).
+    last: (u64, Instant),
 }
 
 impl Pace {
     /// The pace of a phase first seen at `steps`.
     pub(crate) fn new(steps: u64) -> Self {
-        let now = Instant::now();
         Pace {
-            first: (steps, now),
-            last_line: now,
+            last: (steps, Instant::now()),
         }
     }
 
-    /// Whether a line is due ([`LINE_INTERVAL`] since the last one); if so, the next one
-    /// is due an interval from now.
-    pub(crate) fn line_due(&mut self) -> bool {
-        let due = self.last_line.elapsed() >= LINE_INTERVAL;
-        if due {
-            self.last_line = Instant::now();
+    /// A line's tail when one is due ([`LINE_INTERVAL`] since the last line or the first
+    /// report): `; 0.21 s/step here, about 47 min left` at `steps` of `planned` (`bound`:
+    /// "about " or "at most "), the rate taken over the steps since then; an empty tail
+    /// when no step was taken since. The next line is due an interval from now.
+    pub(crate) fn line(&mut self, steps: u64, planned: u64, bound: &str) -> Option<String> {
+        let (since, at) = self.last;
+        let elapsed = at.elapsed();
+        if elapsed < LINE_INTERVAL {
+            return None;
         }
-        due
+        self.last = (steps, Instant::now());
+        Some(left(
+            elapsed.as_secs_f64(),
+            steps.checked_sub(since),
+            (steps, planned),
+            bound,
+        ))
     }
+}
 
-    /// Seconds per step since the first report, once a step has been done.
-    fn seconds_per_step(&self, steps: u64) -> Option<f64> {
-        let done = steps.checked_sub(self.first.0).filter(|&d| d > 0)?;
-        Some(self.first.1.elapsed().as_secs_f64() / done as f64)
-    }
-
-    /// `; 0.21 s/step here, about 47 min left` at `steps` of `planned` (`bound`: "about "
-    /// or "at most "), or nothing before a step has been timed.
-    pub(crate) fn left(&self, steps: u64, planned: u64, bound: &str) -> String {
-        let Some(rate) = self.seconds_per_step(steps) else {
-            return String::new();
-        };
-        let left = rate * planned.saturating_sub(steps) as f64;
-        let pace = if rate >= 0.1 {
-            format!("{rate:.2} s/step")
-        } else {
-            format!("{:.3} ms/step", 1e3 * rate)
-        };
-        format!("; {pace} here, {bound}{} left", duration(left))
-    }
+/// `; 0.21 s/step here, about 47 min left` for `done` steps in `seconds`, at `steps` of
+/// `planned`; empty without a step done.
+fn left(seconds: f64, done: Option<u64>, (steps, planned): (u64, u64), bound: &str) -> String {
+    let Some(done) = done.filter(|&d| d > 0) else {
+        return String::new();
+    };
+    let rate = seconds / done as f64;
+    let left = rate * planned.saturating_sub(steps) as f64;
+    let pace = if rate >= 0.1 {
+        format!("{rate:.2} s/step")
+    } else {
+        format!("{:.3} ms/step", 1e3 * rate)
+    };
+    format!("; {pace} here, {bound}{} left", duration(left))
 }
 
 /// `42 s` under two minutes, else `3.5 min`; `unknown` when not finite.
@@ -100,14 +104,26 @@ mod tests {
     }
 
     #[test]
-    fn nothing_is_left_to_say_before_a_step_is_timed() {
-        let pace = Pace::new(100);
-        assert_eq!(pace.left(100, 1000, "about "), "");
-        let line = pace.left(101, 1000, "at most ");
-        assert!(line.starts_with("; ") && line.contains("at most ") && line.ends_with(" left"));
+    fn nothing_is_left_to_say_without_a_step_done() {
+        assert_eq!(left(60.0, Some(0), (100, 1000), "about "), "");
+        assert_eq!(left(60.0, None, (100, 1000), "about "), "");
+        assert_eq!(
+            left(60.0, Some(1200), (400, 1000), "at most "),
+            "; 50.000 ms/step here, at most 30 s left"
+        );
+        assert_eq!(
+            left(60.0, Some(100), (400, 1000), "about "),
+            "; 0.60 s/step here, about 6.0 min left"
+        );
         assert_eq!(
             steps_done("compact", 250, 1000),
             "compact: 250 / 1000 steps (25 %)"
         );
+    }
+
+    #[test]
+    fn no_line_is_due_before_the_interval() {
+        let mut pace = Pace::new(0);
+        assert_eq!(pace.line(10, 100, "about "), None);
     }
 }

@@ -218,16 +218,17 @@ impl Observer for PreparationProgress {
         if let Some(bar) = &self.bar {
             bar.set_position(status.step);
             bar.set_message(state);
-        } else if pace.line_due() {
+        } else {
             let bound = match phase {
                 Phase::Settle => "at most ",
                 Phase::Place | Phase::Compact => "about ",
             };
-            eprintln!(
-                "{}, {state}{}",
-                steps_done(phase.name(), status.step, planned),
-                pace.left(status.step, planned, bound)
-            );
+            if let Some(tail) = pace.line(status.step, planned, bound) {
+                eprintln!(
+                    "{}, {state}{tail}",
+                    steps_done(phase.name(), status.step, planned)
+                );
+            }
         }
         !self.interrupt.load(Ordering::SeqCst)
     }

@@ -220,25 +220,25 @@ impl TestObserver for TestProgress {
         if let Some(bar) = &self.bar {
             bar.set_position(status.steps);
             bar.set_message(state);
-        } else if pace.line_due() {
-            eprintln!("{}", progress_line(status, pace, &state));
+        } else if let Some(line) = progress_line(status, pace, &state) {
+            eprintln!("{line}");
         }
         !self.interrupt.load(Ordering::SeqCst)
     }
 }
 
 /// `shear: 45000 / 58384 steps (77 %), eps_a = 11.6 %, eta = 0.712; 0.21 s/step here,
-/// about 47 min left` (for consolidation, `at most` that long).
-fn progress_line(status: &TestStatus, pace: &Pace, state: &str) -> String {
+/// about 47 min left` (for consolidation, `at most` that long), when a line is due.
+fn progress_line(status: &TestStatus, pace: &mut Pace, state: &str) -> Option<String> {
     let bound = match status.phase {
         TestPhase::Consolidation => "at most ",
         TestPhase::Shear => "about ",
     };
-    format!(
-        "{}, {state}{}",
+    let tail = pace.line(status.steps, status.planned_steps, bound)?;
+    Some(format!(
+        "{}, {state}{tail}",
         steps_done(status.phase.name(), status.steps, status.planned_steps),
-        pace.left(status.steps, status.planned_steps, bound)
-    )
+    ))
 }
 
 /// The prepared specimen: the given file, the reusable one in the output directory, or a
