@@ -107,7 +107,7 @@ fn definition(args: &TriaxialArgs) -> anyhow::Result<SpecimenSpec> {
 
 /// Progress of the test on stderr: the plan, one line per phase, a bar on a terminal and
 /// otherwise a line every [`crate::commands::progress::LINE_INTERVAL`] with an estimate
-/// from the phase's own steps.
+/// from the phase's steps since the last line ([`Pace`]).
 pub(crate) struct TestProgress {
     bar: Option<ProgressBar>,
     terminal: bool,
