@@ -264,7 +264,7 @@ impl RigidState {
     /// force `force` (N) and the torque `torque` about the centre of mass (N m), both in
     /// the world frame.
     pub fn kick(&mut self, inertia: &RigidInertia, force: [f64; 3], torque: [f64; 3], h: f64) {
-        self.kick_rotated(&quaternion(self.orientation), inertia, [force, torque], h);
+        self.kick_rotated(&quaternion(self.orientation), inertia, force, torque, h);
     }
 
     /// [`RigidState::kick`] with the orientation's rotation `r` made beforehand.
@@ -273,7 +273,8 @@ impl RigidState {
         &mut self,
         r: &UnitQuaternion<f64>,
         inertia: &RigidInertia,
-        [force, torque]: [[f64; 3]; 2],
+        force: [f64; 3],
+        torque: [f64; 3],
         h: f64,
     ) {
         for (v, f) in self.velocity.iter_mut().zip(force) {
@@ -505,8 +506,8 @@ impl RigidPart {
     #[inline]
     pub(crate) fn kick(&mut self, h: f64) {
         let r = *self.rotation();
-        let loads = [self.force, self.torque];
-        self.state.kick_rotated(&r, &self.inertia, loads, h);
+        let (force, torque) = (self.force, self.torque);
+        self.state.kick_rotated(&r, &self.inertia, force, torque, h);
     }
 
     /// The drift over `dt` ([`RigidState::drift`]), and the new orientation's rotation.
