@@ -9,6 +9,8 @@
 //! factors and mesh statistics of every series of the paper; `docs` regenerates the
 //! generated parts of docs/.
 
+mod compare_builds;
+
 use anyhow::{Context, bail};
 use fdem_mesh::{ElementOrder, Sizing, SphereSpec, sphere_mesh};
 use fdem_scaling::ScaleLaw;
@@ -19,6 +21,8 @@ const USAGE: &str = "usage: cargo xtask <task> [options]\n\ntasks:\n  triaxial  
              (default out/study/PRESET), --report DIR (RESULTS.md and results/), --plan, --report-only
   stability  stability maps of the step, penalty and damping (`fdem stability`, docs/STABILITY.md):
              --quick, --out DIR (default out/stability), --report DIR (STABILITY.md and results/)
+  compare-builds  two or more fdem binaries run one command in alternated rounds: wall times,
+             ms per step, ratios and whether the results are byte-identical (`--help`)
   preflight  the exact-scaling factors and particle meshes of the paper's series\n  docs       regenerate the generated parts of docs/ (the scaling table of docs/SCALING.md)";
 
 fn main() -> ExitCode {
@@ -27,6 +31,7 @@ fn main() -> ExitCode {
         Some("triaxial") => triaxial(&args[1..]),
         Some("study") => study(&args[1..]),
         Some("stability") => stability(&args[1..]),
+        Some("compare-builds") => compare_builds::compare_builds(&args[1..]),
         Some("preflight") => preflight(&args[1..]),
         Some("docs") => docs(),
         Some("-h" | "--help") | None => {

@@ -1,0 +1,500 @@
+//! `cargo xtask compare-builds`: two or more `fdem` binaries run the same command in alternated
+//! rounds, and the runs' wall times and per-step costs side by side.
+//!
+//! A shared or virtual machine changes speed by tens of percent within an hour, so a
+//! figure of one binary taken an hour before a figure of another says little. Here every
+//! round runs each binary once, in an order that turns by one binary each round (so that
+//! none always runs first), and the ratios are taken round by round as well as between
+//! the medians. Each run writes its outputs into a directory of its own; the runs of one
+//! round are compared file by file with the first binary's, so a speed change that should
+//! leave the results alone shows whether it did. `runs.csv` gets each round's rows when
+//! the round ends, so an interrupted comparison keeps its finished rounds.
+
+use anyhow::{Context, bail};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The result files of a triaxial run compared between the binaries of a round.
+const RESULT_FILES: &[&str] = &[
+    "curve.csv",
+    "consolidation.csv",
+    "contacts_peak.csv",
+    "pairs_peak.csv",
+];
+
+const USAGE: &str = "usage: cargo xtask compare-builds [--rounds N] [--out DIR] NAME=BINARY NAME=BINARY [...] -- ARGS...
+  runs `BINARY ARGS... --out DIR/NAME-rK` for every binary in every round K, in an order that
+  turns each round; writes DIR/runs.csv and prints each binary's min / median / max and its
+  ratios to the first binary. Defaults: --rounds 3, --out out/compare-builds.
+  `fdem compare --run A=DIR/A-r1 --run B=DIR/B-r1 --out DIR2` then draws two runs' curves together.
+  example: cargo xtask compare-builds --rounds 5 before=/tmp/fdem-before after=target/release/fdem -- triaxial --quick --fresh --threads 2";
+
+/// What the command line asks for.
+#[derive(Debug, PartialEq)]
+struct Plan {
+    rounds: usize,
+    out: PathBuf,
+    binaries: Vec<(String, PathBuf)>,
+    args: Vec<String>,
+}
+
+/// Reads `[--rounds N] [--out DIR] NAME=BINARY... -- ARGS...`.
+fn parse(rest: &[String]) -> anyhow::Result<Plan> {
+    let Some(split) = rest.iter().position(|a| a == "--") else {
+        bail!("the command to run is missing: put it after `--`\n{USAGE}");
+    };
+    let (own, args) = (&rest[..split], rest[split + 1..].to_vec());
+    if args.is_empty() {
+        bail!("nothing to run after `--`: give the fdem command, e.g. `triaxial --quick`\n{USAGE}");
+    }
+    if args.iter().any(|a| a == "--out" || a.starts_with("--out=")) {
+        bail!(
+            "`--out` after `--`: each run gets a directory of its own; give `--out DIR` before `--`"
+        );
+    }
+    let mut plan = Plan {
+        rounds: 3,
+        out: PathBuf::from("out/compare-builds"),
+        binaries: Vec::new(),
+        args,
+    };
+    let mut it = own.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--rounds" => {
+                let v = it.next().context("`--rounds` needs a number")?;
+                plan.rounds = v
+                    .parse()
+                    .ok()
+                    .filter(|&n| n > 0)
+                    .with_context(|| format!("`--rounds {v}`: give a whole number >= 1"))?;
+            }
+            "--out" => plan.out = PathBuf::from(it.next().context("`--out` needs a directory")?),
+            other if other.starts_with('-') => {
+                bail!(
+                    "unknown option '{other}' before `--`: give --rounds N or --out DIR (each with a space before its value)\n{USAGE}"
+                );
+            }
+            other => {
+                let Some((name, path)) = other.split_once('=') else {
+                    bail!(
+                        "'{other}': give each binary as NAME=PATH, e.g. before=/tmp/fdem-before\n{USAGE}"
+                    );
+                };
+                let valid = |c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_';
+                if name.is_empty() || !name.chars().all(valid) {
+                    bail!("'{other}': a binary's name may hold letters, digits, '-' and '_' only");
+                }
+                if plan.binaries.iter().any(|(n, _)| n == name) {
+                    bail!("the name '{name}' is given twice: give each binary its own name");
+                }
+                plan.binaries.push((name.to_string(), PathBuf::from(path)));
+            }
+        }
+    }
+    if plan.binaries.len() < 2 {
+        bail!("give at least two binaries to compare, as NAME=PATH\n{USAGE}");
+    }
+    for (name, path) in &plan.binaries {
+        if !path.is_file() {
+            bail!(
+                "binary '{name}' = {}: no such file (build it, then copy it aside, e.g. `cp target/release/fdem /tmp/fdem-before`)",
+                path.display()
+            );
+        }
+    }
+    Ok(plan)
+}
+
+/// One run's figures.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Run {
+    round: usize,
+    binary: String,
+    wall: f64,
+    /// `summary.json`'s status, or why it could not be read.
+    status: String,
+    /// (steps, ms per step) of the consolidation and of the shear.
+    consolidation: Option<(u64, f64)>,
+    shear: Option<(u64, f64)>,
+    /// Whether the result files equal those of the first binary's run in the same round
+    /// (None for that binary).
+    same: Option<bool>,
+}
+
+/// The order of the binaries in round `r` (from 0): turned by `r`.
+fn order(n: usize, r: usize) -> Vec<usize> {
+    (0..n).map(|i| (i + r) % n).collect()
+}
+
+/// `steps` and `wall_seconds` of a phase's cost object, as milliseconds per step.
+fn phase_cost(cost: &serde_json::Value) -> Option<(u64, f64)> {
+    let steps = cost.get("steps")?.as_u64()?;
+    let wall = cost.get("wall_seconds")?.as_f64()?;
+    (steps > 0).then(|| (steps, 1e3 * wall / steps as f64))
+}
+
+/// Reads the status and the phases' costs of the run in `dir` (docs/TRIAXIAL.md,
+/// `summary.json`); other commands have no summary and keep their wall time alone.
+fn read_summary(dir: &Path, run: &mut Run) {
+    let path = dir.join("summary.json");
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        run.status = "no summary.json".into();
+        return;
+    };
+    let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) else {
+        run.status = "summary.json unreadable".into();
+        return;
+    };
+    run.status = v["status"].as_str().unwrap_or("?").to_string();
+    run.consolidation = phase_cost(&v["consolidation"]["cost"]);
+    run.shear = phase_cost(&v["shear"]);
+}
+
+/// Whether the result files present in `a` are present and byte-identical in `b`.
+fn same_results(a: &Path, b: &Path) -> anyhow::Result<bool> {
+    for f in RESULT_FILES {
+        let (pa, pb) = (a.join(f), b.join(f));
+        match (pa.is_file(), pb.is_file()) {
+            (false, false) => continue,
+            (true, true) => {
+                let read =
+                    |p: &Path| std::fs::read(p).with_context(|| format!("reading {}", p.display()));
+                if read(&pa)? != read(&pb)? {
+                    return Ok(false);
+                }
+            }
+            _ => return Ok(false),
+        }
+    }
+    Ok(true)
+}
+
+/// The median of `v` (the mean of the middle two for an even count); None when empty.
+fn median(v: &[f64]) -> Option<f64> {
+    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return None;
+    }
+    s.sort_by(f64::total_cmp);
+    let m = s.len() / 2;
+    Some(if s.len() % 2 == 1 {
+        s[m]
+    } else {
+        0.5 * (s[m - 1] + s[m])
+    })
+}
+
+/// `min / median / max` of `v`, with `digits` decimals, or `-`.
+fn spread(v: &[f64], digits: usize) -> String {
+    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    match median(v) {
+        Some(m) => format!("{min:.digits$} / {m:.digits$} / {max:.digits$}"),
+        None => "-".into(),
+    }
+}
+
+const CSV_HEADER: &str = "round,binary,wall_s,status,consolidation_steps,consolidation_ms_per_step,shear_steps,shear_ms_per_step,same_results_as_first";
+
+fn csv_row(r: &Run) -> String {
+    let phase = |p: Option<(u64, f64)>| p.map_or(",".into(), |(s, ms)| format!("{s},{ms:.6}"));
+    let same = r.same.map_or("", |s| if s { "yes" } else { "no" });
+    format!(
+        "{},{},{:.3},{},{},{},{}",
+        r.round,
+        r.binary,
+        r.wall,
+        r.status.replace(',', ";"),
+        phase(r.consolidation),
+        phase(r.shear),
+        same
+    )
+}
+
+/// Runs binary `name` at `path` once into `dir`, its output into `log`.
+fn run_once(
+    (name, path): (&str, &Path),
+    args: &[String],
+    dir: &Path,
+    log: &Path,
+    round: usize,
+) -> anyhow::Result<Run> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("clearing {}", dir.display()))?;
+    }
+    let out = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+    let err = out.try_clone()?;
+    let start = Instant::now();
+    let status = std::process::Command::new(path)
+        .args(args)
+        .arg("--out")
+        .arg(dir)
+        .stdout(out)
+        .stderr(err)
+        .status()
+        .with_context(|| format!("starting {}", path.display()))?;
+    let wall = start.elapsed().as_secs_f64();
+    if !status.success() {
+        bail!(
+            "binary '{name}' failed in round {round} ({status}); its output is in {}",
+            log.display()
+        );
+    }
+    let mut run = Run {
+        round,
+        binary: name.to_string(),
+        wall,
+        ..Run::default()
+    };
+    read_summary(dir, &mut run);
+    Ok(run)
+}
+
+/// A figure of a run that the report sets side by side.
+#[derive(Clone, Copy, Debug)]
+enum Figure {
+    Wall,
+    ConsolidationStep,
+    ShearStep,
+}
+
+impl Figure {
+    const ALL: [Figure; 3] = [Figure::Wall, Figure::ConsolidationStep, Figure::ShearStep];
+
+    fn label(self) -> &'static str {
+        match self {
+            Figure::Wall => "wall (s)",
+            Figure::ConsolidationStep => "consolidation (ms/step)",
+            Figure::ShearStep => "shear (ms/step)",
+        }
+    }
+
+    fn of(self, r: &Run) -> Option<f64> {
+        match self {
+            Figure::Wall => Some(r.wall),
+            Figure::ConsolidationStep => r.consolidation.map(|c| c.1),
+            Figure::ShearStep => r.shear.map(|c| c.1),
+        }
+    }
+}
+
+/// Figure `f` of binary `name`'s runs, round by round.
+fn values(runs: &[Run], name: &str, f: Figure) -> Vec<f64> {
+    runs.iter()
+        .filter(|r| r.binary == name)
+        .filter_map(|r| f.of(r))
+        .collect()
+}
+
+/// Figure `f` of binary `name`'s run in `round`.
+fn in_round(runs: &[Run], name: &str, round: usize, f: Figure) -> Option<f64> {
+    runs.iter()
+        .find(|r| r.binary == name && r.round == round)
+        .and_then(|r| f.of(r))
+}
+
+/// Prints each binary's figures and its ratios to the first binary.
+fn report(plan: &Plan, runs: &[Run]) {
+    let first = &plan.binaries[0].0;
+    let rounds = if plan.rounds == 1 { "round" } else { "rounds" };
+    println!("\nmin / median / max over {} {rounds}:", plan.rounds);
+    for (name, _) in &plan.binaries {
+        let parts: Vec<String> = Figure::ALL
+            .iter()
+            .map(|&f| format!("{} {}", f.label(), spread(&values(runs, name, f), 3)))
+            .collect();
+        println!("  {name}: {}", parts.join("; "));
+    }
+    for (name, _) in plan.binaries.iter().skip(1) {
+        println!("  {first} over {name} (above 1: {name} is faster):");
+        for f in Figure::ALL {
+            let medians = median(&values(runs, first, f)).zip(median(&values(runs, name, f)));
+            let Some((a, b)) = medians else {
+                continue;
+            };
+            let by_round: Vec<String> = (1..=plan.rounds)
+                .filter_map(|k| Some(in_round(runs, first, k, f)? / in_round(runs, name, k, f)?))
+                .map(|x| format!("{x:.3}"))
+                .collect();
+            println!(
+                "    {}: {:.3} at the medians; by round {}",
+                f.label(),
+                a / b,
+                by_round.join(" / ")
+            );
+        }
+        let theirs = || runs.iter().filter(|r| r.binary == *name);
+        let differ = theirs().filter(|r| r.same == Some(false)).count();
+        if differ > 0 {
+            println!(
+                "    results differ from {first}'s in {differ} of {} rounds",
+                plan.rounds
+            );
+        } else if theirs().any(|r| r.same == Some(true)) {
+            println!("    results byte-identical to {first}'s in every round");
+        }
+    }
+}
+
+/// `cargo xtask compare-builds`.
+pub(crate) fn compare_builds(rest: &[String]) -> anyhow::Result<()> {
+    if rest.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return Ok(());
+    }
+    let plan = parse(rest)?;
+    let logs = plan.out.join("logs");
+    std::fs::create_dir_all(&logs).with_context(|| format!("creating {}", logs.display()))?;
+    let csv_path = plan.out.join("runs.csv");
+    let mut csv = std::fs::File::create(&csv_path)
+        .with_context(|| format!("creating {}", csv_path.display()))?;
+    writeln!(csv, "{CSV_HEADER}")?;
+    let n = plan.binaries.len();
+    eprintln!(
+        "{} rounds of {n} binaries: {} runs of `BINARY {} --out {}/NAME-rK`, one after another",
+        plan.rounds,
+        plan.rounds * n,
+        plan.args.join(" "),
+        plan.out.display()
+    );
+    let mut runs: Vec<Run> = Vec::new();
+    for round in 1..=plan.rounds {
+        let dir_of = |name: &str| plan.out.join(format!("{name}-r{round}"));
+        let mut this_round: Vec<Run> = Vec::new();
+        for i in order(n, round - 1) {
+            let (name, path) = (&plan.binaries[i].0, &plan.binaries[i].1);
+            let log = logs.join(format!("{name}-r{round}.txt"));
+            let run = run_once((name, path), &plan.args, &dir_of(name), &log, round)?;
+            let shear = run.shear.map(|(_, ms)| format!(", shear {ms:.3} ms/step"));
+            eprintln!(
+                "round {round}/{}: {name} {:.2} s{}",
+                plan.rounds,
+                run.wall,
+                shear.unwrap_or_default()
+            );
+            this_round.push(run);
+        }
+        // Every other binary's results against the first binary's of the same round.
+        let first = dir_of(&plan.binaries[0].0);
+        for run in this_round.iter_mut() {
+            if run.binary != plan.binaries[0].0 {
+                run.same = Some(same_results(&first, &dir_of(&run.binary))?);
+            }
+        }
+        this_round.sort_by_key(|r| plan.binaries.iter().position(|(b, _)| *b == r.binary));
+        for run in &this_round {
+            writeln!(csv, "{}", csv_row(run))?;
+        }
+        csv.flush()?;
+        runs.extend(this_round);
+    }
+    report(&plan, &runs);
+    println!("per run: {}", csv_path.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn a_plan_reads_its_binaries_rounds_and_command() {
+        let exe = std::env::current_exe().unwrap();
+        let e = exe.display();
+        let plan = parse(&args(&format!(
+            "--rounds 4 --out o a={e} b={e} -- triaxial --quick"
+        )))
+        .unwrap();
+        assert_eq!(plan.rounds, 4);
+        assert_eq!(plan.out, PathBuf::from("o"));
+        assert_eq!(plan.binaries.len(), 2);
+        assert_eq!(plan.binaries[1].0, "b");
+        assert_eq!(plan.args, args("triaxial --quick"));
+    }
+
+    #[test]
+    fn bad_command_lines_say_what_to_do() {
+        let exe = std::env::current_exe().unwrap();
+        let e = exe.display();
+        let cases = [
+            (format!("a={e} b={e}"), "after `--`"),
+            (format!("a={e} b={e} --"), "nothing to run"),
+            (format!("a={e} -- triaxial"), "at least two"),
+            (format!("a={e} a={e} -- triaxial"), "given twice"),
+            (format!("a={e} b=/no/such/fdem -- triaxial"), "no such file"),
+            (
+                format!("a={e} b={e} -- triaxial --out x"),
+                "directory of its own",
+            ),
+            (
+                format!("--rounds 0 a={e} b={e} -- triaxial"),
+                "whole number",
+            ),
+            (format!("a/b={e} c={e} -- triaxial"), "letters, digits"),
+            (format!("{e} c={e} -- triaxial"), "NAME=PATH"),
+            (
+                format!("--rounds=2 a={e} b={e} -- triaxial"),
+                "unknown option",
+            ),
+        ];
+        for (line, expected) in cases {
+            let err = parse(&args(&line)).unwrap_err().to_string();
+            assert!(err.contains(expected), "{line}: {err}");
+        }
+    }
+
+    #[test]
+    fn each_round_turns_the_order() {
+        assert_eq!(order(2, 0), [0, 1]);
+        assert_eq!(order(2, 1), [1, 0]);
+        assert_eq!(order(3, 2), [2, 0, 1]);
+    }
+
+    #[test]
+    fn medians_and_spreads() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median(&[]), None);
+        assert_eq!(spread(&[2.0, 1.0, 4.0], 1), "1.0 / 2.0 / 4.0");
+        assert_eq!(spread(&[], 1), "-");
+    }
+
+    #[test]
+    fn a_summary_gives_the_phases_per_step() {
+        let dir = std::env::temp_dir().join(format!("xtask-compare-builds-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let summary = r#"{"status": "completed", "consolidation": {"cost": {"steps": 100, "wall_seconds": 0.05}},
+                         "shear": {"steps": 200, "wall_seconds": 0.2}}"#;
+        std::fs::write(dir.join("summary.json"), summary).unwrap();
+        let mut run = Run::default();
+        read_summary(&dir, &mut run);
+        assert_eq!(run.status, "completed");
+        let (steps, ms) = run.consolidation.unwrap();
+        assert_eq!(steps, 100);
+        assert!((ms - 0.5).abs() < 1e-12);
+        let (steps, ms) = run.shear.unwrap();
+        assert_eq!(steps, 200);
+        assert!((ms - 1.0).abs() < 1e-12);
+        // Result files: equal, then one byte changed, then one missing.
+        let other = dir.join("other");
+        std::fs::create_dir_all(&other).unwrap();
+        std::fs::write(dir.join("curve.csv"), "a,b\n1,2\n").unwrap();
+        std::fs::write(other.join("curve.csv"), "a,b\n1,2\n").unwrap();
+        assert!(same_results(&dir, &other).unwrap());
+        std::fs::write(other.join("curve.csv"), "a,b\n1,3\n").unwrap();
+        assert!(!same_results(&dir, &other).unwrap());
+        std::fs::remove_file(other.join("curve.csv")).unwrap();
+        assert!(!same_results(&dir, &other).unwrap());
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(
+            csv_row(&run),
+            "0,,0.000,completed,100,0.500000,200,1.000000,"
+        );
+    }
+}
