@@ -179,9 +179,9 @@ pub enum ContactError {
 
     /// A node position or velocity is NaN or infinite.
     #[error(
-        "{quantity} of surface node {node} (body {body}) is not finite ({value:?}); the \
-         simulation has diverged: reduce the time step (check the stable step of the elastic \
-         and contact bounds) or the loading rate"
+        "{quantity} of surface node {node} (body {body}) is not finite (NaN or infinite); \
+         the simulation has diverged: reduce the time step (check the stable step of the \
+         elastic and contact bounds) or the loading rate"
     )]
     NonFinite {
         /// `"position"` or `"velocity"`.
@@ -190,7 +190,7 @@ pub enum ContactError {
         node: usize,
         /// Body of the node.
         body: u32,
-        /// The offending vector.
+        /// The offending vector (not printed: the message names the node and its body).
         value: [f64; 3],
     },
 

@@ -91,6 +91,12 @@ impl RigidPose {
         orthonormal && dot(cross(r[0], r[1]), r[2]) > 0.0
     }
 
+    /// Whether every number of the pose is finite.
+    pub fn is_finite(&self) -> bool {
+        let rows = self.to_template.iter().flatten();
+        rows.chain(&self.origin).all(|v| v.is_finite()) && self.scale.is_finite()
+    }
+
     /// Template coordinates of the world point `x`.
     #[inline(always)]
     pub fn template_point(&self, x: [f64; 3]) -> [f64; 3] {
@@ -456,10 +462,16 @@ impl RigidFrames {
         Ok(())
     }
 
-    /// Refuses poses of another count than one per framed body.
+    /// Refuses poses of another count than one per framed body. A finite pose must be a
+    /// scaled rotation; a pose that is not finite (a body whose state overflowed) is taken
+    /// as it is: the scan finds its nodes not finite and the evaluation ends in that error.
     fn check_poses(&self, poses: &[RigidPose]) -> Result<(), ContactError> {
         self.one_per_body("rigid poses", poses.len())?;
-        debug_assert!(poses.iter().all(RigidPose::is_scaled_rotation));
+        debug_assert!(
+            poses
+                .iter()
+                .all(|p| !p.is_finite() || p.is_scaled_rotation())
+        );
         Ok(())
     }
 

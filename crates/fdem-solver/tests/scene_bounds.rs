@@ -825,6 +825,31 @@ fn the_ordinary_scenes_run_to_their_end() {
     }
 }
 
+/// A scene the random cases found: one rigid particle of density 1e300 with a depth limit
+/// of 1e300 beside a plane wall. Its rotation overflows to NaN in its first steps, and the
+/// run must end in one clear error (the debug builds' check of the kept rotation once
+/// panicked on it, a NaN being unequal to itself).
+#[test]
+fn a_rigid_body_whose_rotation_overflows_ends_in_one_clear_error() {
+    let case = Case {
+        particles: 1,
+        levels: [0, 0, 0],
+        models: ["rigid", "deformable", "deformable"],
+        walls: 1,
+        vtk: false,
+        changes: vec![
+            (6, Edit::Set(Value::Float(1e300))),
+            (41, Edit::Set(Value::Float(1e300))),
+        ],
+    };
+    let text = case.text();
+    assert!(text.contains("density = 1e300"), "{text}");
+    assert!(text.contains("depth_limit = 1e300"), "{text}");
+    let (outcome, message) = check(&case, BOUND).unwrap();
+    assert_ne!(outcome, Outcome::Completed, "{message}\n{text}");
+    assert!(!message.is_empty(), "{outcome:?}\n{text}");
+}
+
 /// Prints the figures of a run of `cases` scenes and checks that every outcome occurred.
 fn report(cases: u32) {
     let start = Instant::now();
