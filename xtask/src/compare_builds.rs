@@ -25,8 +25,8 @@ const RESULT_FILES: &[&str] = &[
 
 const USAGE: &str = "usage: cargo xtask compare-builds [--rounds N] [--out DIR] NAME=BINARY NAME=BINARY [...] -- ARGS...
   runs `BINARY ARGS... --out DIR/NAME-rK` for every binary in every round K, in an order that
-  turns each round; writes DIR/runs.csv and prints each binary's min / median / max and its
-  ratios to the first binary. Defaults: --rounds 3, --out out/compare-builds.
+  turns each round; writes DIR/runs.csv and prints each binary's min / median / max (wall,
+  consolidation and shear ms per step, peak RSS) and its ratios to the first binary. Defaults: --rounds 3, --out out/compare-builds.
   `fdem compare --run A=DIR/A-r1 --run B=DIR/B-r1 --out DIR2` then draws two runs' curves together.
   example: cargo xtask compare-builds --rounds 5 before=/tmp/fdem-before after=target/release/fdem -- triaxial --quick --fresh --threads 2";
 
@@ -115,6 +115,8 @@ struct Run {
     wall: f64,
     /// `summary.json`'s status, or why it could not be read.
     status: String,
+    /// Peak resident set size (kB), where the system reports it.
+    peak_rss_kb: Option<u64>,
     /// (steps, ms per step) of the consolidation and of the shear.
     consolidation: Option<(u64, f64)>,
     shear: Option<(u64, f64)>,
@@ -196,13 +198,14 @@ fn spread(v: &[f64], digits: usize) -> String {
     }
 }
 
-const CSV_HEADER: &str = "round,binary,wall_s,status,consolidation_steps,consolidation_ms_per_step,shear_steps,shear_ms_per_step,same_results_as_first";
+const CSV_HEADER: &str = "round,binary,wall_s,peak_rss_kb,status,consolidation_steps,consolidation_ms_per_step,shear_steps,shear_ms_per_step,same_results_as_first";
 
 fn csv_row(r: &Run) -> String {
     let phase = |p: Option<(u64, f64)>| p.map_or(",".into(), |(s, ms)| format!("{s},{ms:.6}"));
     let same = r.same.map_or("", |s| if s { "yes" } else { "no" });
+    let rss = r.peak_rss_kb.map_or(String::new(), |kb| kb.to_string());
     format!(
-        "{},{},{:.3},{},{},{},{}",
+        "{},{},{:.3},{rss},{},{},{},{}",
         r.round,
         r.binary,
         r.wall,
@@ -227,14 +230,15 @@ fn run_once(
     let out = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
     let err = out.try_clone()?;
     let start = Instant::now();
-    let status = std::process::Command::new(path)
+    let mut child = std::process::Command::new(path)
         .args(args)
         .arg("--out")
         .arg(dir)
         .stdout(out)
         .stderr(err)
-        .status()
+        .spawn()
         .with_context(|| format!("starting {}", path.display()))?;
+    let (status, peak_rss_kb) = wait_with_peak_rss(&mut child)?;
     let wall = start.elapsed().as_secs_f64();
     if !status.success() {
         bail!(
@@ -246,10 +250,47 @@ fn run_once(
         round,
         binary: name.to_string(),
         wall,
+        peak_rss_kb,
         ..Run::default()
     };
     read_summary(dir, &mut run);
     Ok(run)
+}
+
+/// Waits for `child`: its exit status, and on Linux its peak resident set size (kB) from
+/// the kernel's accounting of the reaped process (`wait4`, the figure `/usr/bin/time`
+/// prints as its maximum resident set size).
+#[cfg(target_os = "linux")]
+fn wait_with_peak_rss(
+    child: &mut std::process::Child,
+) -> anyhow::Result<(std::process::ExitStatus, Option<u64>)> {
+    use std::os::unix::process::ExitStatusExt;
+    let pid = libc::pid_t::try_from(child.id()).context("a process id out of range")?;
+    let mut status: libc::c_int = 0;
+    // SAFETY: `rusage` is a plain C struct of integers, for which all zeros is a value.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    loop {
+        // SAFETY: `pid` is our own child, not yet reaped (`child` is not waited on before
+        // or after this), and `status` and `usage` are valid for writes.
+        let reaped = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+        if reaped == pid {
+            break;
+        }
+        let e = std::io::Error::last_os_error();
+        if e.kind() != std::io::ErrorKind::Interrupted {
+            return Err(e).context("waiting for the run");
+        }
+    }
+    let peak = u64::try_from(usage.ru_maxrss).ok();
+    Ok((std::process::ExitStatus::from_raw(status), peak))
+}
+
+/// Waits for `child`: its exit status (no peak memory on this system).
+#[cfg(not(target_os = "linux"))]
+fn wait_with_peak_rss(
+    child: &mut std::process::Child,
+) -> anyhow::Result<(std::process::ExitStatus, Option<u64>)> {
+    Ok((child.wait().context("waiting for the run")?, None))
 }
 
 /// A figure of a run that the report sets side by side.
@@ -258,16 +299,23 @@ enum Figure {
     Wall,
     ConsolidationStep,
     ShearStep,
+    PeakRss,
 }
 
 impl Figure {
-    const ALL: [Figure; 3] = [Figure::Wall, Figure::ConsolidationStep, Figure::ShearStep];
+    const ALL: [Figure; 4] = [
+        Figure::Wall,
+        Figure::ConsolidationStep,
+        Figure::ShearStep,
+        Figure::PeakRss,
+    ];
 
     fn label(self) -> &'static str {
         match self {
             Figure::Wall => "wall (s)",
             Figure::ConsolidationStep => "consolidation (ms/step)",
             Figure::ShearStep => "shear (ms/step)",
+            Figure::PeakRss => "peak RSS (MiB)",
         }
     }
 
@@ -276,6 +324,7 @@ impl Figure {
             Figure::Wall => Some(r.wall),
             Figure::ConsolidationStep => r.consolidation.map(|c| c.1),
             Figure::ShearStep => r.shear.map(|c| c.1),
+            Figure::PeakRss => r.peak_rss_kb.map(|kb| kb as f64 / 1024.0),
         }
     }
 }
@@ -308,7 +357,7 @@ fn report(plan: &Plan, runs: &[Run]) {
         println!("  {name}: {}", parts.join("; "));
     }
     for (name, _) in plan.binaries.iter().skip(1) {
-        println!("  {first} over {name} (above 1: {name} is faster):");
+        println!("  {first} over {name} (above 1: {name} is faster, or smaller in memory):");
         for f in Figure::ALL {
             let medians = median(&values(runs, first, f)).zip(median(&values(runs, name, f)));
             let Some((a, b)) = medians else {
@@ -353,7 +402,7 @@ pub(crate) fn compare_builds(rest: &[String]) -> anyhow::Result<()> {
     writeln!(csv, "{CSV_HEADER}")?;
     let n = plan.binaries.len();
     eprintln!(
-        "{} rounds of {n} binaries: {} runs of `BINARY {} --out {}/NAME-rK`, one after another",
+        "{} round(s) of {n} binaries: {} runs of `BINARY {} --out {}/NAME-rK`, one after another",
         plan.rounds,
         plan.rounds * n,
         plan.args.join(" "),
@@ -494,7 +543,7 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
         assert_eq!(
             csv_row(&run),
-            "0,,0.000,completed,100,0.500000,200,1.000000,"
+            "0,,0.000,,completed,100,0.500000,200,1.000000,"
         );
     }
 }
