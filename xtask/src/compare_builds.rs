@@ -546,4 +546,76 @@ mod tests {
             "0,,0.000,,completed,100,0.500000,200,1.000000,"
         );
     }
+
+    /// Writes an executable stand-in for `fdem` that writes a summary and a curve (`curve`)
+    /// into the directory after its `--out`.
+    #[cfg(unix)]
+    fn fake_fdem(dir: &Path, name: &str, curve: &str) -> PathBuf {
+        use std::os::unix::fs::PermissionsExt;
+        let path = dir.join(name);
+        let script = format!(
+            "#!/bin/sh\nfor a; do out=$a; done\nmkdir -p \"$out\"\n\
+             printf '{{\"status\": \"completed\", \"consolidation\": {{\"cost\": {{\"steps\": 10, \"wall_seconds\": 0.01}}}}, \"shear\": {{\"steps\": 20, \"wall_seconds\": 0.04}}}}' > \"$out/summary.json\"\n\
+             printf '{curve}' > \"$out/curve.csv\"\n"
+        );
+        std::fs::write(&path, script).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+        path
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_comparison_runs_every_binary_in_every_round_and_compares_their_results() {
+        let dir = tempfile::tempdir().unwrap();
+        let same = fake_fdem(dir.path(), "same", "a,b 1,2");
+        let twin = fake_fdem(dir.path(), "twin", "a,b 1,2");
+        let other = fake_fdem(dir.path(), "other", "a,b 1,3");
+        let out = dir.path().join("out");
+        let line = format!(
+            "--rounds 2 --out {} first={} twin={} other={} -- triaxial --quick",
+            out.display(),
+            same.display(),
+            twin.display(),
+            other.display()
+        );
+        compare_builds(&args(&line)).unwrap();
+        let csv = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+        let rows: Vec<Vec<&str>> = csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect())
+            .collect();
+        assert_eq!(rows.len(), 6, "{csv}");
+        // Within a round the rows follow the binaries' order, whatever order they ran in.
+        let names: Vec<&str> = rows.iter().map(|r| r[1]).collect();
+        assert_eq!(names, ["first", "twin", "other", "first", "twin", "other"]);
+        for r in &rows {
+            assert_eq!(r[4], "completed", "{csv}");
+            assert_eq!((r[5], r[7]), ("10", "20"), "{csv}");
+            assert!((r[6].parse::<f64>().unwrap() - 1.0).abs() < 1e-9, "{csv}");
+            assert!((r[8].parse::<f64>().unwrap() - 2.0).abs() < 1e-9, "{csv}");
+            if cfg!(target_os = "linux") {
+                assert!(r[3].parse::<u64>().unwrap() > 0, "{csv}");
+            }
+        }
+        let verdicts: Vec<&str> = rows.iter().map(|r| r[9]).collect();
+        assert_eq!(verdicts, ["", "yes", "no", "", "yes", "no"]);
+        assert!(out.join("logs").join("other-r2.txt").is_file());
+        // A binary that fails stops the comparison with where its output is.
+        let failing = dir.path().join("failing");
+        std::fs::write(&failing, "#!/bin/sh\necho broken >&2\nexit 3\n").unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&failing, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let line = format!(
+            "--rounds 1 --out {} first={} failing={} -- triaxial",
+            out.display(),
+            same.display(),
+            failing.display()
+        );
+        let err = compare_builds(&args(&line)).unwrap_err().to_string();
+        assert!(
+            err.contains("'failing' failed in round 1") && err.contains("failing-r1.txt"),
+            "{err}"
+        );
+    }
 }
