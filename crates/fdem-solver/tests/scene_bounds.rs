@@ -827,8 +827,9 @@ fn the_ordinary_scenes_run_to_their_end() {
 
 /// A scene the random cases found: one rigid particle of density 1e300 with a depth limit
 /// of 1e300 beside a plane wall. Its rotation overflows to NaN in its first steps, and the
-/// run must end in one clear error (the debug builds' check of the kept rotation once
-/// panicked on it, a NaN being unequal to itself).
+/// run must end in one clear error. Three things once stood in the way: the debug builds'
+/// checks of the kept rotation and of the poses panicked on it (a NaN is unequal to
+/// itself, and a NaN pose is no rotation), and the contact's message printed the NaNs.
 #[test]
 fn a_rigid_body_whose_rotation_overflows_ends_in_one_clear_error() {
     let case = Case {
