@@ -177,8 +177,8 @@ pub struct RigidState {
 
 /// Whether two rotations hold the same values, a NaN the same as a NaN: a body whose
 /// state overflowed keeps NaNs in its rotation as in its orientation until the step's
-/// finiteness check stops the run.
-#[cfg(debug_assertions)]
+/// finiteness check stops the run. (Type-checked in every build, as `debug_assert!`
+/// compiles its condition in release builds too.)
 fn same_values(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> bool {
     let same = |(x, y): (&f64, &f64)| x == y || (x.is_nan() && y.is_nan());
     a.coords.iter().zip(b.coords.iter()).all(same)
