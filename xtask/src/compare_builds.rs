@@ -11,6 +11,8 @@
 //! the round ends, so an interrupted comparison keeps its finished rounds.
 
 use anyhow::{Context, bail};
+use fdem_core::statistics::median;
+use fdem_triaxial::RunCost;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -130,15 +132,14 @@ fn order(n: usize, r: usize) -> Vec<usize> {
     (0..n).map(|i| (i + r) % n).collect()
 }
 
-/// `steps` and `wall_seconds` of a phase's cost object, as milliseconds per step.
-fn phase_cost(cost: &serde_json::Value) -> Option<(u64, f64)> {
-    let steps = cost.get("steps")?.as_u64()?;
-    let wall = cost.get("wall_seconds")?.as_f64()?;
-    (steps > 0).then(|| (steps, 1e3 * wall / steps as f64))
+/// A phase's steps and wall seconds as `(steps, milliseconds per step)`, where it ran.
+fn per_step(steps: u64, wall_seconds: f64) -> Option<(u64, f64)> {
+    (steps > 0 && wall_seconds.is_finite()).then(|| (steps, 1e3 * wall_seconds / steps as f64))
 }
 
 /// Reads the status and the phases' costs of the run in `dir` (docs/TRIAXIAL.md,
-/// `summary.json`); other commands have no summary and keep their wall time alone.
+/// `summary.json`, read by [`RunCost::of_summary`]); other commands have no summary and
+/// keep their wall time alone.
 fn read_summary(dir: &Path, run: &mut Run) {
     let path = dir.join("summary.json");
     let Ok(text) = std::fs::read_to_string(&path) else {
@@ -150,8 +151,9 @@ fn read_summary(dir: &Path, run: &mut Run) {
         return;
     };
     run.status = v["status"].as_str().unwrap_or("?").to_string();
-    run.consolidation = phase_cost(&v["consolidation"]["cost"]);
-    run.shear = phase_cost(&v["shear"]);
+    let cost = RunCost::of_summary(&v);
+    run.consolidation = per_step(cost.consolidation_steps, cost.consolidation_wall);
+    run.shear = per_step(cost.shear_steps, cost.shear_wall);
 }
 
 /// Whether the result files present in `a` are present and byte-identical in `b`.
@@ -173,26 +175,16 @@ fn same_results(a: &Path, b: &Path) -> anyhow::Result<bool> {
     Ok(true)
 }
 
-/// The median of `v` (the mean of the middle two for an even count); None when empty.
-fn median(v: &[f64]) -> Option<f64> {
-    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if s.is_empty() {
-        return None;
-    }
-    s.sort_by(f64::total_cmp);
-    let m = s.len() / 2;
-    Some(if s.len() % 2 == 1 {
-        s[m]
-    } else {
-        0.5 * (s[m - 1] + s[m])
-    })
+/// The median of the figures `v` (all finite: [`Figure::of`] gives none that is not).
+fn median_of(v: &[f64]) -> Option<f64> {
+    median(&mut v.to_vec())
 }
 
 /// `min / median / max` of `v`, with `digits` decimals, or `-`.
 fn spread(v: &[f64], digits: usize) -> String {
     let min = v.iter().copied().fold(f64::INFINITY, f64::min);
     let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    match median(v) {
+    match median_of(v) {
         Some(m) => format!("{min:.digits$} / {m:.digits$} / {max:.digits$}"),
         None => "-".into(),
     }
@@ -359,7 +351,7 @@ fn report(plan: &Plan, runs: &[Run]) {
     for (name, _) in plan.binaries.iter().skip(1) {
         println!("  {first} over {name} (above 1: {name} is faster, or smaller in memory):");
         for f in Figure::ALL {
-            let medians = median(&values(runs, first, f)).zip(median(&values(runs, name, f)));
+            let medians = median_of(&values(runs, first, f)).zip(median_of(&values(runs, name, f)));
             let Some((a, b)) = medians else {
                 continue;
             };
@@ -507,9 +499,8 @@ mod tests {
 
     #[test]
     fn medians_and_spreads() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
-        assert_eq!(median(&[]), None);
+        assert_eq!(median_of(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median_of(&[]), None);
         assert_eq!(spread(&[2.0, 1.0, 4.0], 1), "1.0 / 2.0 / 4.0");
         assert_eq!(spread(&[], 1), "-");
     }

@@ -16,6 +16,7 @@
 //! - **A stable hash** ([`hash`]): FNV-1a, for file checksums and run keys.
 //! - **Space order** ([`space_order`]): the Morton (Z-order) curve, to number items that
 //!   are near in space near in memory.
+//! - **Order statistics** ([`statistics`]): the median of samples.
 //! - **Numbers in messages** ([`number`]): [`number::Number`] prints a value plain where
 //!   that is short and in exponent form otherwise.
 //! - **Run identifiers** ([`run_id`]): the UTC start and the input's hash that name a
@@ -68,3 +69,4 @@ pub mod run_id;
 pub mod sections;
 pub mod snapshot;
 pub mod space_order;
+pub mod statistics;

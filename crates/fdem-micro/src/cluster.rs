@@ -39,6 +39,7 @@ use crate::MicroError;
 use crate::dbscan::{dbscan, nearest_neighbour_distances, tree_of};
 use crate::snapshot::{Counterpart, Snapshot};
 use crate::vec3::{add, distance, norm, scale};
+use fdem_core::statistics::median;
 use kiddo::SquaredEuclidean;
 use serde::Serialize;
 use std::collections::BTreeSet;
@@ -259,19 +260,6 @@ impl Cluster {
     fn total(&self) -> [f64; 3] {
         add(self.normal, self.tangential)
     }
-}
-
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    Some(if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    })
 }
 
 /// Minimal union-find over cluster indices.

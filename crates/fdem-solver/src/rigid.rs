@@ -520,8 +520,8 @@ impl RigidPart {
     #[inline]
     pub(crate) fn kick(&mut self, h: f64) {
         let r = *self.rotation();
-        let (force, torque) = (self.force, self.torque);
-        self.state.kick_rotated(&r, &self.inertia, force, torque, h);
+        self.state
+            .kick_rotated(&r, &self.inertia, self.force, self.torque, h);
     }
 
     /// The drift over `dt` ([`RigidState::drift`]), and the new orientation's rotation.

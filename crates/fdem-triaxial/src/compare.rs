@@ -30,6 +30,8 @@ pub struct FinishedRun {
 /// What a run cost, from its `summary.json`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RunCost {
+    /// Consolidation steps.
+    pub consolidation_steps: u64,
     /// Consolidation wall seconds.
     pub consolidation_wall: f64,
     /// Consolidation CPU seconds (NaN where the platform did not report them).
@@ -40,6 +42,28 @@ pub struct RunCost {
     pub shear_wall: f64,
     /// Shear CPU seconds (NaN where not reported).
     pub shear_cpu: f64,
+}
+
+impl RunCost {
+    /// The costs a test's `summary.json` (parsed as `summary`) records: NaN seconds and
+    /// zero steps for what it does not hold.
+    pub fn of_summary(summary: &serde_json::Value) -> RunCost {
+        let value = |path: &[&str]| path.iter().try_fold(summary, |v, k| v.get(k));
+        let seconds = |path: &[&str]| {
+            value(path)
+                .and_then(serde_json::Value::as_f64)
+                .unwrap_or(f64::NAN)
+        };
+        let steps = |path: &[&str]| value(path).and_then(serde_json::Value::as_u64).unwrap_or(0);
+        RunCost {
+            consolidation_steps: steps(&["consolidation", "cost", "steps"]),
+            consolidation_wall: seconds(&["consolidation", "cost", "wall_seconds"]),
+            consolidation_cpu: seconds(&["consolidation", "cost", "cpu_seconds"]),
+            shear_steps: steps(&["shear", "steps"]),
+            shear_wall: seconds(&["shear", "wall_seconds"]),
+            shear_cpu: seconds(&["shear", "cpu_seconds"]),
+        }
+    }
 }
 
 fn file_error(path: &Path, message: String) -> TriaxialError {
@@ -71,23 +95,7 @@ impl FinishedRun {
         })?;
         let json: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| file_error(&summary_path, format!("is not JSON: {e}")))?;
-        let number = |path: &[&str]| {
-            path.iter()
-                .try_fold(&json, |v, k| v.get(k))
-                .and_then(serde_json::Value::as_f64)
-                .unwrap_or(f64::NAN)
-        };
-        let cost = RunCost {
-            consolidation_wall: number(&["consolidation", "cost", "wall_seconds"]),
-            consolidation_cpu: number(&["consolidation", "cost", "cpu_seconds"]),
-            shear_steps: json
-                .get("shear")
-                .and_then(|s| s.get("steps"))
-                .and_then(serde_json::Value::as_u64)
-                .unwrap_or(0),
-            shear_wall: number(&["shear", "wall_seconds"]),
-            shear_cpu: number(&["shear", "cpu_seconds"]),
-        };
+        let cost = RunCost::of_summary(&json);
         let model = json
             .get("model")
             .and_then(serde_json::Value::as_str)
