@@ -17,7 +17,11 @@
 //! slots numbered in insertion order). Triangles are scanned in parallel in fixed
 //! chunks, and the pairs are then placed into each node's list in triangle order, sorted
 //! by (owner body, triangle): the lists are the same for every thread count, and a build
-//! costs O(triangles + surface nodes + pairs).
+//! costs O(triangles + surface nodes + pairs). A run of consecutive faces of one body (a
+//! particle's faces) whose boxes' union overlaps few cells queries the grid once for the
+//! union, and each face then tests the few nodes of other bodies found there instead of
+//! querying the grid itself: every node in a face's box is in the union, so the lists are
+//! the same, and most faces of a particle, far from its neighbours, meet none.
 //!
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
@@ -228,6 +232,8 @@ pub(crate) struct BroadPhase {
     cursor: Vec<usize>,
     /// The direction bins of the rigid bodies' templates ([`framed`]).
     bins: framed::BinCache,
+    /// When the scan queries the grid once for a run of one body's faces.
+    segments: SegmentPolicy,
 }
 
 /// How cells are numbered: a dense box of cells when the occupied region is compact
@@ -470,6 +476,161 @@ fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
         & (x[0] <= b[3])
         & (x[1] <= b[4])
         & (x[2] <= b[5])
+}
+
+/// When a run of consecutive faces of one body takes one query of the grid for all of
+/// them ([`GridView::foreign_nodes`]) instead of one query per face: the choice sets only
+/// the work, never the lists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct SegmentPolicy {
+    /// The most cells the union of the run's boxes may overlap, per face (a face's own
+    /// query visits two or three cells per axis).
+    cells_per_face: usize,
+    /// The most nodes of other bodies the union may hold, which each face then tests
+    /// directly (a face's own query costs about as much as testing this many).
+    max_foreign: usize,
+}
+
+impl SegmentPolicy {
+    const DEFAULT: SegmentPolicy = SegmentPolicy {
+        cells_per_face: 4,
+        max_foreign: 64,
+    };
+}
+
+impl Default for SegmentPolicy {
+    fn default() -> Self {
+        SegmentPolicy::DEFAULT
+    }
+}
+
+/// The binned nodes of a build, as the scan reads them.
+#[derive(Clone, Copy)]
+struct GridView<'a> {
+    frame: Frame,
+    layout: Layout,
+    table: &'a CellTable,
+    cell_start: &'a [usize],
+    cell_nodes: &'a [u32],
+    cell_x: &'a [[f64; 3]],
+    cell_body: &'a [u32],
+}
+
+/// Buffers one piece of the scan keeps from face to face.
+#[derive(Default)]
+struct SegmentScratch {
+    runs: Vec<std::ops::Range<usize>>,
+    /// Per face, the grid slots of the nodes in its box.
+    inside: Vec<usize>,
+    /// The grid slots and positions of the other bodies' nodes in a run's union box.
+    foreign: Vec<usize>,
+    foreign_x: Vec<[f64; 3]>,
+}
+
+impl SegmentScratch {
+    /// The slots of the foreign nodes (found by [`GridView::foreign_nodes`]) in box `bx`.
+    #[inline]
+    fn in_box_of_foreign(&mut self, bx: &[f64; 6]) -> &[usize] {
+        let (foreign, inside) = (&self.foreign, &mut self.inside);
+        if inside.len() < foreign.len() {
+            inside.resize(foreign.len(), 0);
+        }
+        // Without a branch per node (in or out at random).
+        let mut n = 0;
+        for (&i, &x) in foreign.iter().zip(&self.foreign_x) {
+            inside[n] = i;
+            n += usize::from(in_box(bx, x));
+        }
+        &inside[..n]
+    }
+}
+
+impl GridView<'_> {
+    /// The number of cells a box overlaps (those within the grid in a dense layout).
+    fn cells_within(&self, bx: &[f64; 6]) -> usize {
+        let mut lo = self.frame.cell([bx[0], bx[1], bx[2]]);
+        let mut hi = self.frame.cell([bx[3], bx[4], bx[5]]);
+        if let Layout::Dense { dims } = self.layout {
+            for d in 0..3 {
+                lo[d] = lo[d].max(0);
+                hi[d] = hi[d].min(dims[d] - 1);
+            }
+        }
+        (0..3)
+            .map(|d| usize::try_from(hi[d] - lo[d] + 1).unwrap_or(0))
+            .fold(1, usize::saturating_mul)
+    }
+
+    /// The slots of the nodes of bodies other than `owner` in box `bx` (one query of the
+    /// grid), in `inside`.
+    #[inline]
+    fn in_box<'s>(
+        &self,
+        bx: &[f64; 6],
+        owner: u32,
+        (runs, inside): (&mut Vec<std::ops::Range<usize>>, &'s mut Vec<usize>),
+    ) -> &'s [usize] {
+        runs.clear();
+        self.frame
+            .runs_within((self.layout, self.table, self.cell_start), bx, runs);
+        let total = runs.iter().map(|r| r.len()).sum::<usize>();
+        if inside.len() < total {
+            inside.resize(total, 0);
+        }
+        // Without a branch per node (in or out at random).
+        let mut n = 0;
+        for run in runs.iter() {
+            let rows = self.cell_x[run.clone()]
+                .iter()
+                .zip(&self.cell_body[run.clone()]);
+            for (i, (&x, &body)) in rows.enumerate() {
+                inside[n] = run.start + i;
+                n += usize::from((body != owner) & in_box(bx, x));
+            }
+        }
+        &inside[..n]
+    }
+
+    /// Finds the nodes of bodies other than `owner` in the union of `boxes` (the enlarged
+    /// boxes of a run of the owner's faces) into `scratch.foreign`, when the union's cells
+    /// and those nodes are few enough that one query and a direct test per face is cheaper
+    /// than a query per face; returns whether it did. Every node of another body in one
+    /// of the boxes is in their union, so the faces' pairs are the same either way.
+    fn foreign_nodes(
+        &self,
+        (boxes, owner): (&[[f64; 6]], u32),
+        policy: SegmentPolicy,
+        scratch: &mut SegmentScratch,
+    ) -> bool {
+        let mut union = [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for bx in boxes {
+            for d in 0..3 {
+                union[d] = union[d].min(bx[d]);
+                union[d + 3] = union[d + 3].max(bx[d + 3]);
+            }
+        }
+        if self.cells_within(&union) > policy.cells_per_face.saturating_mul(boxes.len()) {
+            return false;
+        }
+        let found = self.in_box(&union, owner, (&mut scratch.runs, &mut scratch.foreign));
+        if found.len() > policy.max_foreign {
+            return false;
+        }
+        let n = found.len();
+        scratch.foreign.truncate(n);
+        scratch.foreign_x.clear();
+        scratch
+            .foreign_x
+            .extend(scratch.foreign.iter().map(|&i| self.cell_x[i]));
+        true
+    }
 }
 
 impl BroadPhase {
@@ -730,7 +891,10 @@ impl BroadPhase {
     /// cells its enlarged box overlaps and keeps the nodes of other bodies there whose
     /// position lies in the box and that pass [`is_candidate`], and with `spheres` the
     /// nodes of the framed bodies that meet the box (which the grid does not hold); each
-    /// piece lists its pairs in triangle order.
+    /// piece lists its pairs in triangle order. A run of consecutive faces of one body
+    /// within a piece finds the other bodies' nodes in its boxes' union once when the
+    /// policy allows ([`GridView::foreign_nodes`]), and each face then tests those instead
+    /// of visiting the cells; a face with no node to test is passed over.
     ///
     /// A node farther than the enlargement from the triangle itself cannot reach it
     /// before the next build (every point of the face moves at most half the skin, as
@@ -750,14 +914,20 @@ impl BroadPhase {
         self.found.truncate(pieces.len());
         let reaches = self.reaches();
         let window = self.window;
-        let (layout, table) = (self.layout, &self.table);
-        let boxes = &self.boxes;
-        let (cell_start, cell_nodes) = (&self.cell_start, &self.cell_nodes);
-        let (cell_x, cell_body) = (&self.cell_x, &self.cell_body);
+        let (boxes, policy) = (&self.boxes, self.segments);
         let bodies = &self.bodies;
         let at = framed::NodeAt {
             positions: &self.reference,
             ids: None,
+        };
+        let grid = GridView {
+            frame,
+            layout: self.layout,
+            table: &self.table,
+            cell_start: &self.cell_start,
+            cell_nodes: &self.cell_nodes,
+            cell_x: &self.cell_x,
+            cell_body: &self.cell_body,
         };
         self.found
             .par_iter_mut()
@@ -765,57 +935,52 @@ impl BroadPhase {
             .for_each(|(chunk, pairs)| {
                 pairs.clear();
                 let mut scratch = Default::default();
-                let (mut runs, mut inside) = (Vec::new(), Vec::new());
+                let mut local = SegmentScratch::default();
                 let triangles = pieces[chunk].clone();
-                let rows = boxes[triangles.clone()]
-                    .iter()
-                    .zip(&surface.triangles[triangles.clone()])
-                    .zip(&surface.triangle_body[triangles.clone()]);
-                for (t, ((bx, &ids), &owner)) in triangles.zip(rows) {
-                    let face = ids.map(|i| positions[i]);
+                let mut t = triangles.start;
+                while t < triangles.end {
+                    // A run of faces of one body: the nodes of other bodies near all of
+                    // them are found once, when that is cheaper than a query per face.
+                    let owner = surface.triangle_body[t];
+                    let end = (t..triangles.end)
+                        .find(|&u| surface.triangle_body[u] != owner)
+                        .unwrap_or(triangles.end);
+                    let foreign = grid.foreign_nodes((&boxes[t..end], owner), policy, &mut local);
                     let reach = reaches.of_face(two_sided(owner));
-                    let mut window_reach = window.of_face_once(face);
-                    let candidate = Candidate {
-                        // Node ids fit in u32: ContactSurface::validate checks the count.
-                        nodes: ids.map(|i| i as u32),
-                        triangle: t as u32,
-                        body: owner,
-                    };
-                    // The framed bodies' nodes, which the grid does not hold.
-                    if let Some(spheres) = spheres {
-                        let mut test = |x| {
-                            in_box(bx, x)
-                                && is_candidate(x, face, reach, (window.depth, &mut window_reach))
+                    for (t, bx) in (t..end).zip(&boxes[t..end]) {
+                        let inside = if foreign {
+                            local.in_box_of_foreign(bx)
+                        } else {
+                            grid.in_box(bx, owner, (&mut local.runs, &mut local.inside))
                         };
-                        let nodes = (at, bodies);
-                        let face = (bx, candidate);
-                        spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
-                    }
-                    // The nodes of other bodies in the box first, without a branch per
-                    // node (in or out at random), then the full test on those.
-                    runs.clear();
-                    frame.runs_within((layout, table, cell_start), bx, &mut runs);
-                    let total = runs.iter().map(|r| r.len()).sum::<usize>();
-                    if inside.len() < total {
-                        inside.resize(total, 0);
-                    }
-                    let mut n = 0;
-                    for run in &runs {
-                        for (i, (&x, &body)) in cell_x[run.clone()]
-                            .iter()
-                            .zip(&cell_body[run.clone()])
-                            .enumerate()
-                        {
-                            inside[n] = run.start + i;
-                            n += usize::from((body != owner) & in_box(bx, x));
+                        if inside.is_empty() && spheres.is_none() {
+                            continue;
+                        }
+                        let ids = surface.triangles[t];
+                        let face = ids.map(|i| positions[i]);
+                        let mut window_reach = window.of_face_once(face);
+                        let candidate = Candidate {
+                            // Node ids fit in u32: ContactSurface::validate checks the count.
+                            nodes: ids.map(|i| i as u32),
+                            triangle: t as u32,
+                            body: owner,
+                        };
+                        let mut test =
+                            |x| is_candidate(x, face, reach, (window.depth, &mut window_reach));
+                        // The framed bodies' nodes, which the grid does not hold.
+                        if let Some(spheres) = spheres {
+                            let mut test = |x| in_box(bx, x) && test(x);
+                            let nodes = (at, bodies);
+                            let face = (bx, candidate);
+                            spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
+                        }
+                        for &i in inside {
+                            if test(grid.cell_x[i]) {
+                                pairs.push((grid.cell_nodes[i], candidate));
+                            }
                         }
                     }
-                    for &i in &inside[..n] {
-                        let x = cell_x[i];
-                        if is_candidate(x, face, reach, (window.depth, &mut window_reach)) {
-                            pairs.push((cell_nodes[i], candidate));
-                        }
-                    }
+                    t = end;
                 }
             });
     }
@@ -908,9 +1073,72 @@ impl<'a> ChunkLists<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::floor_to_i64;
+    use super::{BroadPhase, SegmentPolicy, floor_to_i64};
+    use crate::ContactSurface;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
+
+    impl SegmentPolicy {
+        const NEVER: SegmentPolicy = SegmentPolicy {
+            cells_per_face: 0,
+            max_foreign: 0,
+        };
+        const ALWAYS: SegmentPolicy = SegmentPolicy {
+            cells_per_face: usize::MAX,
+            max_foreign: usize::MAX,
+        };
+    }
+
+    /// A large sphere (level 2, diameter 4) among 40 small ones (level 1, diameter 1) at
+    /// random, overlapping or near each other: runs of faces of both sizes, and runs cut
+    /// by the scan's fixed pieces of triangles.
+    fn cluster() -> (ContactSurface, Vec<[f64; 3]>) {
+        use fdem_mesh::{ElementOrder, MeshAssembly, Placement, Sizing, SphereSpec};
+        let sphere = |level, diameter| {
+            let spec = SphereSpec {
+                level,
+                order: ElementOrder::Linear,
+                diameter,
+                sizing: Sizing::Inscribed,
+            };
+            fdem_mesh::sphere_mesh(&spec).expect("a valid sphere")
+        };
+        let (large, small) = (sphere(2, 4.0), sphere(1, 1.0));
+        let mut rng = Pcg64::seed_from_u64(5);
+        let mut assembly = MeshAssembly::new();
+        assembly
+            .push_instance(&large, &Placement::default())
+            .expect("the large sphere");
+        for _ in 0..40 {
+            let at = [0, 1, 2].map(|_| rng.random_range(-3.0..3.0));
+            assembly
+                .push_instance(&small, &Placement::at(at))
+                .expect("a small sphere");
+        }
+        let surface = ContactSurface::from_assembly(&assembly).expect("a surface");
+        (surface, assembly.nodes)
+    }
+
+    /// The lists are the same whether a run of one body's faces queries the grid once or
+    /// each face queries it, under the default choice between the two, for solid faces
+    /// and for a sheet's.
+    #[test]
+    fn one_query_per_run_of_faces_gives_the_lists_of_one_query_per_face() {
+        let (surface, positions) = cluster();
+        for sheet in [None, Some(0)] {
+            let lists = |segments| {
+                let mut broad = BroadPhase::for_surface(&surface);
+                broad.segments = segments;
+                let reaches = (0.05, 0.1, 0.08);
+                broad.build(&positions, &surface, reaches, None, |b| Some(b) == sheet);
+                (broad.pairs, broad.chunk_starts, broad.chunk_cands)
+            };
+            let each_face = lists(SegmentPolicy::NEVER);
+            assert!(each_face.0 > 1000, "{} pairs", each_face.0);
+            assert_eq!(lists(SegmentPolicy::ALWAYS), each_face);
+            assert_eq!(lists(SegmentPolicy::DEFAULT), each_face);
+        }
+    }
 
     /// The branch-free floor agrees with the library's `floor` followed by the same
     /// saturating conversion, at the edges and on random values of every magnitude.
