@@ -286,6 +286,21 @@ impl Frame {
         ]
     }
 
+    /// The lowest and highest integer coordinates of the cells box `bx` overlaps, within
+    /// the grid's cells in a dense layout (the others hold no node).
+    #[inline(always)]
+    fn cell_range(self, layout: Layout, bx: &[f64; 6]) -> ([i64; 3], [i64; 3]) {
+        let mut lo = self.cell([bx[0], bx[1], bx[2]]);
+        let mut hi = self.cell([bx[3], bx[4], bx[5]]);
+        if let Layout::Dense { dims } = layout {
+            for d in 0..3 {
+                lo[d] = lo[d].max(0);
+                hi[d] = hi[d].min(dims[d] - 1);
+            }
+        }
+        (lo, hi)
+    }
+
     /// Appends to `runs` the runs of `cell_nodes` (through the row starts `cell_start`)
     /// that hold the nodes of every cell a box overlaps, in the order of the cells (`x`
     /// fastest) and of the nodes within each: with a dense layout, one run per row of
@@ -298,13 +313,8 @@ impl Frame {
         bx: &[f64; 6],
         runs: &mut Vec<std::ops::Range<usize>>,
     ) {
-        let mut lo = self.cell([bx[0], bx[1], bx[2]]);
-        let mut hi = self.cell([bx[3], bx[4], bx[5]]);
+        let (lo, hi) = self.cell_range(layout, bx);
         if let Layout::Dense { dims } = layout {
-            for d in 0..3 {
-                lo[d] = lo[d].max(0);
-                hi[d] = hi[d].min(dims[d] - 1);
-            }
             if lo[0] > hi[0] {
                 return;
             }
@@ -548,16 +558,9 @@ impl SegmentScratch {
 impl GridView<'_> {
     /// The number of cells a box overlaps (those within the grid in a dense layout).
     fn cells_within(&self, bx: &[f64; 6]) -> usize {
-        let mut lo = self.frame.cell([bx[0], bx[1], bx[2]]);
-        let mut hi = self.frame.cell([bx[3], bx[4], bx[5]]);
-        if let Layout::Dense { dims } = self.layout {
-            for d in 0..3 {
-                lo[d] = lo[d].max(0);
-                hi[d] = hi[d].min(dims[d] - 1);
-            }
-        }
+        let (lo, hi) = self.frame.cell_range(self.layout, bx);
         (0..3)
-            .map(|d| usize::try_from(hi[d] - lo[d] + 1).unwrap_or(0))
+            .map(|d| usize::try_from(hi[d].saturating_sub(lo[d]).saturating_add(1)).unwrap_or(0))
             .fold(1, usize::saturating_mul)
     }
 
@@ -1137,6 +1140,36 @@ mod tests {
             assert!(each_face.0 > 1000, "{} pairs", each_face.0);
             assert_eq!(lists(SegmentPolicy::ALWAYS), each_face);
             assert_eq!(lists(SegmentPolicy::DEFAULT), each_face);
+        }
+    }
+
+    /// A box as wide as the numbers allow counts as many cells as a `usize` holds, in
+    /// either layout, without overflowing on the way (the choice of scan then queries
+    /// face by face).
+    #[test]
+    fn the_cells_of_a_huge_box_saturate() {
+        let frame = super::Frame {
+            origin: [0.0; 3],
+            inv: 1.0,
+        };
+        let table = super::CellTable::default();
+        let huge = [-1e300, -1e300, -1e300, 1e300, 1e300, 1e300];
+        let dims = [4, 5, 6];
+        for (layout, cells) in [
+            (super::Layout::Hash, usize::MAX),
+            (super::Layout::Dense { dims }, 4 * 5 * 6),
+        ] {
+            let grid = super::GridView {
+                frame,
+                layout,
+                table: &table,
+                cell_start: &[],
+                cell_nodes: &[],
+                cell_x: &[],
+                cell_body: &[],
+            };
+            assert_eq!(grid.cells_within(&huge), cells, "{layout:?}");
+            assert_eq!(grid.cells_within(&[0.5, 0.5, 0.5, 1.5, 2.5, 0.5]), 6);
         }
     }
 
