@@ -208,12 +208,14 @@ pub(crate) struct BroadPhase {
     /// one ([`refresh::Dirt`]); all `false` between refreshes.
     single_nodes: Vec<bool>,
     single_faces: Vec<bool>,
-    /// Enlarged triangle boxes at the last build.
+    /// Triangle boxes at the last build (the scan grows them by the enlargement).
     boxes: Vec<[f64; 6]>,
     layout: Layout,
     table: CellTable,
-    /// Row starts of the cells' nodes in `cell_nodes` (one more than the cells).
-    cell_start: Vec<usize>,
+    /// Row starts of the cells' nodes in `cell_nodes` (one more than the cells; node
+    /// numbers fit in `u32`, `ContactSurface::validate` checks the count). Half the bytes
+    /// of `usize` keep more of the rows in cache for the scan's queries.
+    cell_start: Vec<u32>,
     /// The surface nodes by cell, in increasing order within a cell.
     cell_nodes: Vec<u32>,
     /// The surface nodes binned in the grid (those of bodies without a frame when the
@@ -230,6 +232,8 @@ pub(crate) struct BroadPhase {
     found: Vec<Vec<(u32, Candidate)>>,
     /// Per surface node, the next free slot of its list while the pairs are placed.
     cursor: Vec<usize>,
+    /// Per cell, the next free slot of its row while the nodes are binned.
+    cell_cursor: Vec<u32>,
     /// The direction bins of the rigid bodies' templates ([`framed`]).
     bins: framed::BinCache,
     /// When the scan queries the grid once for a run of one body's faces.
@@ -253,7 +257,7 @@ const DENSE_CELLS_PER_NODE: usize = 8;
 const DENSE_MIN_CELLS: usize = 1 << 12;
 
 /// The grid's cell size over the mean enlarged triangle box (see
-/// `BroadPhase::enlarged_boxes`; docs/PERFORMANCE.md has the sizes tried).
+/// `BroadPhase::triangle_boxes`; docs/PERFORMANCE.md has the sizes tried).
 const CELL_PER_MEAN_BOX: f64 = 0.75;
 
 /// Triangles per parallel work item of the scan (fixed, so the lists never depend on the
@@ -309,7 +313,7 @@ impl Frame {
     #[inline(always)]
     fn runs_within(
         self,
-        (layout, table, cell_start): (Layout, &CellTable, &[usize]),
+        (layout, table, cell_start): (Layout, &CellTable, &[u32]),
         bx: &[f64; 6],
         runs: &mut Vec<std::ops::Range<usize>>,
     ) {
@@ -322,7 +326,7 @@ impl Frame {
                 for j in lo[1]..=hi[1] {
                     let first = dense_index(dims, [lo[0], j, k]);
                     let last = first + (hi[0] - lo[0]) as usize;
-                    let run = cell_start[first]..cell_start[last + 1];
+                    let run = cell_start[first] as usize..cell_start[last + 1] as usize;
                     if !run.is_empty() {
                         runs.push(run);
                     }
@@ -335,7 +339,7 @@ impl Frame {
                 for i in lo[0]..=hi[0] {
                     if let Some(cell) = table.get(pack(i, j, k)) {
                         let cell = cell as usize;
-                        runs.push(cell_start[cell]..cell_start[cell + 1]);
+                        runs.push(cell_start[cell] as usize..cell_start[cell + 1] as usize);
                     }
                 }
             }
@@ -462,17 +466,50 @@ fn is_candidate(
     window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach())
 }
 
+/// The box of a triangle (lower corner, upper corner).
+#[inline(always)]
+fn face_box(face: [[f64; 3]; 3]) -> [f64; 6] {
+    let [a, b, c] = face;
+    let mut bx = [0.0; 6];
+    for d in 0..3 {
+        bx[d] = lower(lower(a[d], b[d]), c[d]);
+        bx[d + 3] = upper(upper(a[d], b[d]), c[d]);
+    }
+    bx
+}
+
+/// The smaller of two finite numbers. Positions are finite (the model checks them), so a
+/// comparison does: `f64::min` adds its handling of NaN to each of the many calls of a
+/// build.
+#[inline(always)]
+fn lower(p: f64, q: f64) -> f64 {
+    if p < q { p } else { q }
+}
+
+/// The larger of two finite numbers (see [`lower`]).
+#[inline(always)]
+fn upper(p: f64, q: f64) -> f64 {
+    if p > q { p } else { q }
+}
+
+/// Box `bx` grown by `e` on every side.
+#[inline(always)]
+fn grow(bx: &[f64; 6], e: f64) -> [f64; 6] {
+    [
+        bx[0] - e,
+        bx[1] - e,
+        bx[2] - e,
+        bx[3] + e,
+        bx[4] + e,
+        bx[5] + e,
+    ]
+}
+
 /// The box of a triangle, grown by `e` on every side (the build's enlarged boxes, bit for
 /// bit, when `e` is the enlargement).
 #[inline(always)]
 fn grown_box(face: [[f64; 3]; 3], e: f64) -> [f64; 6] {
-    let [a, b, c] = face;
-    let mut bx = [0.0; 6];
-    for d in 0..3 {
-        bx[d] = a[d].min(b[d]).min(c[d]) - e;
-        bx[d + 3] = a[d].max(b[d]).max(c[d]) + e;
-    }
-    bx
+    grow(&face_box(face), e)
 }
 
 /// Whether `x` lies in the box `b` (lower corner, upper corner), without a branch per
@@ -487,6 +524,11 @@ fn in_box(b: &[f64; 6], x: [f64; 3]) -> bool {
         & (x[1] <= b[4])
         & (x[2] <= b[5])
 }
+
+/// The faces of a run that share one first test of the run's foreign nodes: consecutive
+/// faces of a mesh are mostly neighbours, so the group's union box is small and holds few
+/// of them, and each face then tests only those.
+const FACES_PER_GROUP: usize = 8;
 
 /// When a run of consecutive faces of one body takes one query of the grid for all of
 /// them ([`GridView::foreign_nodes`]) instead of one query per face: the choice sets only
@@ -520,7 +562,7 @@ struct GridView<'a> {
     frame: Frame,
     layout: Layout,
     table: &'a CellTable,
-    cell_start: &'a [usize],
+    cell_start: &'a [u32],
     cell_nodes: &'a [u32],
     cell_x: &'a [[f64; 3]],
     cell_body: &'a [u32],
@@ -535,24 +577,66 @@ struct SegmentScratch {
     /// The grid slots and positions of the other bodies' nodes in a run's union box.
     foreign: Vec<usize>,
     foreign_x: Vec<[f64; 3]>,
+    /// Those of them in the union of the current group of faces' boxes.
+    near: Vec<usize>,
+    near_x: Vec<[f64; 3]>,
 }
 
 impl SegmentScratch {
-    /// The slots of the foreign nodes (found by [`GridView::foreign_nodes`]) in box `bx`.
-    #[inline]
-    fn in_box_of_foreign(&mut self, bx: &[f64; 6]) -> &[usize] {
-        let (foreign, inside) = (&self.foreign, &mut self.inside);
-        if inside.len() < foreign.len() {
-            inside.resize(foreign.len(), 0);
-        }
+    /// Keeps, of the foreign nodes (found by [`GridView::foreign_nodes`]), those in the
+    /// union of the triangle boxes `boxes` (a group of the run's faces) grown by `e` as the
+    /// near nodes, in their order.
+    fn gather_near(&mut self, boxes: &[[f64; 6]], e: f64) {
+        let union = grow(&union_of(boxes), e);
+        let n = self.foreign.len();
+        self.near.resize(n, 0);
+        self.near_x.resize(n, [0.0; 3]);
         // Without a branch per node (in or out at random).
+        let mut m = 0;
+        for (&i, &x) in self.foreign.iter().zip(&self.foreign_x) {
+            self.near[m] = i;
+            self.near_x[m] = x;
+            m += usize::from(in_box(&union, x));
+        }
+        self.near.truncate(m);
+        self.near_x.truncate(m);
+    }
+
+    /// The slots of the near nodes (of [`SegmentScratch::gather_near`]) in box `bx`.
+    #[inline]
+    fn in_box_of_near(&mut self, bx: &[f64; 6]) -> &[usize] {
+        let (near, inside) = (&self.near, &mut self.inside);
+        if inside.len() < near.len() {
+            inside.resize(near.len(), 0);
+        }
         let mut n = 0;
-        for (&i, &x) in foreign.iter().zip(&self.foreign_x) {
+        for (&i, &x) in near.iter().zip(&self.near_x) {
             inside[n] = i;
             n += usize::from(in_box(bx, x));
         }
         &inside[..n]
     }
+}
+
+/// The smallest box holding `boxes` (an empty box, lower corner above the upper, for none).
+/// Growing it by `e` gives the union of the grown boxes, bit for bit: a rounded difference
+/// never decreases with its first term.
+fn union_of(boxes: &[[f64; 6]]) -> [f64; 6] {
+    let mut union = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for bx in boxes {
+        for d in 0..3 {
+            union[d] = lower(union[d], bx[d]);
+            union[d + 3] = upper(union[d + 3], bx[d + 3]);
+        }
+    }
+    union
 }
 
 impl GridView<'_> {
@@ -594,31 +678,19 @@ impl GridView<'_> {
         &inside[..n]
     }
 
-    /// Finds the nodes of bodies other than `owner` in the union of `boxes` (the enlarged
-    /// boxes of a run of the owner's faces) into `scratch.foreign`, when the union's cells
-    /// and those nodes are few enough that one query and a direct test per face is cheaper
-    /// than a query per face; returns whether it did. Every node of another body in one
-    /// of the boxes is in their union, so the faces' pairs are the same either way.
+    /// Finds the nodes of bodies other than `owner` in the union of `boxes` (the triangle
+    /// boxes of a run of the owner's faces) grown by `e` into `scratch.foreign`, when the
+    /// union's cells and those nodes are few enough that one query and a direct test per
+    /// face is cheaper than a query per face; returns whether it did. Every node of another
+    /// body in one of the grown boxes is in their union, so the faces' pairs are the same
+    /// either way.
     fn foreign_nodes(
         &self,
-        (boxes, owner): (&[[f64; 6]], u32),
+        (boxes, e, owner): (&[[f64; 6]], f64, u32),
         policy: SegmentPolicy,
         scratch: &mut SegmentScratch,
     ) -> bool {
-        let mut union = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        for bx in boxes {
-            for d in 0..3 {
-                union[d] = union[d].min(bx[d]);
-                union[d + 3] = union[d + 3].max(bx[d + 3]);
-            }
-        }
+        let union = grow(&union_of(boxes), e);
         if self.cells_within(&union) > policy.cells_per_face.saturating_mul(boxes.len()) {
             return false;
         }
@@ -686,7 +758,7 @@ impl BroadPhase {
         self.reference.clear();
         self.reference
             .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
-        let e = self.enlarged_boxes(positions, surface, reach);
+        let e = self.triangle_boxes(positions, surface, reach);
         // The reach in front of a face's plane: see FRONT_SKINS.
         self.front = FRONT_SKINS * skin + (e - reach);
         self.sheet_enlargement = skin + sheet_depth.min(depth_limit) + (e - reach);
@@ -738,9 +810,10 @@ impl BroadPhase {
         self.refreshed_nodes = 0;
     }
 
-    /// The triangle boxes at `positions`, enlarged by `reach` plus the tolerance band;
-    /// sets the enlargement and the cell size, and returns the enlargement.
-    fn enlarged_boxes(
+    /// The triangle boxes at `positions`; sets the enlargement (`reach` plus the tolerance
+    /// band), by which the scan grows each box where it reads it, and the cell size, and
+    /// returns the enlargement.
+    fn triangle_boxes(
         &mut self,
         positions: &[[f64; 3]],
         surface: &ContactSurface,
@@ -758,14 +831,12 @@ impl BroadPhase {
             .map(|(boxes, triangles)| {
                 let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
                 for (bx, tri) in boxes.iter_mut().zip(triangles) {
-                    let [a, b, c] = tri.map(|i| positions[i]);
+                    *bx = face_box(tri.map(|i| positions[i]));
                     let mut extent = 0.0_f64;
                     for d in 0..3 {
-                        bx[d] = a[d].min(b[d]).min(c[d]);
-                        bx[d + 3] = a[d].max(b[d]).max(c[d]);
-                        extent = extent.max(bx[d + 3] - bx[d]);
+                        extent = upper(extent, bx[d + 3] - bx[d]);
                     }
-                    largest = largest.max(extent);
+                    largest = upper(largest, extent);
                     sum += extent;
                 }
                 (largest, sum)
@@ -778,15 +849,6 @@ impl BroadPhase {
         // band lets a foot fall slightly outside the triangle.
         let e = reach + 2.0 * BARYCENTRIC_TOLERANCE * largest;
         self.enlargement = e;
-        self.boxes
-            .par_iter_mut()
-            .with_min_len(TRIANGLE_CHUNK)
-            .for_each(|bx| {
-                for d in 0..3 {
-                    bx[d] -= e;
-                    bx[d + 3] += e;
-                }
-            });
         // Three quarters of the mean enlarged box: a box overlaps two or three cells per
         // axis (two or three rows of cells per layer, each one run of nodes for the scan),
         // each with a few nodes; an eighth of the largest bounds the cells a large face
@@ -811,8 +873,8 @@ impl BroadPhase {
         for &k in &self.binned {
             let x = self.reference[k as usize];
             for d in 0..3 {
-                origin[d] = origin[d].min(x[d]);
-                top[d] = top[d].max(x[d]);
+                origin[d] = lower(origin[d], x[d]);
+                top[d] = upper(top[d], x[d]);
             }
         }
         if !origin.iter().chain(&top).all(|o| o.is_finite()) {
@@ -869,13 +931,13 @@ impl BroadPhase {
         for c in 1..start.len() {
             start[c] += start[c - 1];
         }
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&start[..n_cells]);
+        self.cell_cursor.clear();
+        self.cell_cursor.extend_from_slice(&start[..n_cells]);
         self.cell_nodes.clear();
         self.cell_nodes.resize(n, 0);
         for (&k, &c) in self.binned.iter().zip(&self.node_cells) {
-            let slot = &mut self.cursor[c as usize];
-            self.cell_nodes[*slot] = k;
+            let slot = &mut self.cell_cursor[c as usize];
+            self.cell_nodes[*slot as usize] = k;
             *slot += 1;
         }
         // Positions and bodies in the same order, so the scan reads a cell's nodes
@@ -917,7 +979,7 @@ impl BroadPhase {
         self.found.truncate(pieces.len());
         let reaches = self.reaches();
         let window = self.window;
-        let (boxes, policy) = (&self.boxes, self.segments);
+        let (boxes, policy, e) = (&self.boxes, self.segments, self.enlargement);
         let bodies = &self.bodies;
         let at = framed::NodeAt {
             positions: &self.reference,
@@ -948,11 +1010,19 @@ impl BroadPhase {
                     let end = (t..triangles.end)
                         .find(|&u| surface.triangle_body[u] != owner)
                         .unwrap_or(triangles.end);
-                    let foreign = grid.foreign_nodes((&boxes[t..end], owner), policy, &mut local);
+                    let run = (&boxes[t..end], e, owner);
+                    let foreign = grid.foreign_nodes(run, policy, &mut local);
                     let reach = reaches.of_face(two_sided(owner));
-                    for (t, bx) in (t..end).zip(&boxes[t..end]) {
+                    let run_start = t;
+                    for (t, raw) in (t..end).zip(&boxes[t..end]) {
+                        let bx = &grow(raw, e);
                         let inside = if foreign {
-                            local.in_box_of_foreign(bx)
+                            // Each group of faces first keeps the foreign nodes near it.
+                            if (t - run_start) % FACES_PER_GROUP == 0 {
+                                let group = &boxes[t..(t + FACES_PER_GROUP).min(end)];
+                                local.gather_near(group, e);
+                            }
+                            local.in_box_of_near(bx)
                         } else {
                             grid.in_box(bx, owner, (&mut local.runs, &mut local.inside))
                         };
