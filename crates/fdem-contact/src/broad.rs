@@ -19,9 +19,11 @@
 //! by (owner body, triangle): the lists are the same for every thread count, and a build
 //! costs O(triangles + surface nodes + pairs). A run of consecutive faces of one body (a
 //! particle's faces) whose boxes' union overlaps few cells queries the grid once for the
-//! union, and each face then tests the few nodes of other bodies found there instead of
-//! querying the grid itself: every node in a face's box is in the union, so the lists are
-//! the same, and most faces of a particle, far from its neighbours, meet none.
+//! union, and each group of [`FACES_PER_GROUP`] faces, then each face, tests the few nodes
+//! of other bodies found there instead of querying the grid itself: every node in a face's
+//! box is in the union, so the lists are the same, and most faces of a particle, far from
+//! its neighbours, meet none. The boxes are stored as the triangles' own and grown by the
+//! enlargement where they are read.
 //!
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
