@@ -558,6 +558,58 @@ impl Default for SegmentPolicy {
     }
 }
 
+/// Places the pairs of `found` whose node lies in `first .. first + cursor.len()` into
+/// the lists of that part's chunks (`cands`, `starts`, from chunk `first / CHUNK`):
+/// counts per node into `cursor` (zero on entry), row starts, the pairs in their order,
+/// then each list sorted by (owner body, triangle) unless it already is.
+fn place_part(
+    found: &[Vec<(u32, Candidate)>],
+    first: usize,
+    cursor: &mut [usize],
+    (cands, starts): (&mut [Vec<Candidate>], &mut [Vec<usize>]),
+) {
+    let len = cursor.len();
+    let mine = |k: u32| (k as usize).checked_sub(first).filter(|&i| i < len);
+    for &(k, _) in found.iter().flatten() {
+        if let Some(i) = mine(k) {
+            cursor[i] += 1;
+        }
+    }
+    // Row starts per chunk, and each node's first slot.
+    for ((rows, chunk_starts), slots) in cands
+        .iter_mut()
+        .zip(starts.iter_mut())
+        .zip(cursor.chunks_mut(CHUNK))
+    {
+        chunk_starts.clear();
+        chunk_starts.push(0);
+        let mut running = 0;
+        for slot in slots {
+            let count = *slot;
+            *slot = running;
+            running += count;
+            chunk_starts.push(running);
+        }
+        rows.clear();
+        rows.resize(running, Candidate::default());
+    }
+    for &(k, cand) in found.iter().flatten() {
+        if let Some(i) = mine(k) {
+            let slot = &mut cursor[i];
+            cands[i / CHUNK][*slot] = cand;
+            *slot += 1;
+        }
+    }
+    for (rows, chunk_starts) in cands.iter_mut().zip(starts.iter()) {
+        for row in chunk_starts.windows(2) {
+            let list = &mut rows[row[0]..row[1]];
+            if !list.is_sorted_by_key(|c| (c.body, c.triangle)) {
+                list.sort_unstable_by_key(|c| (c.body, c.triangle));
+            }
+        }
+    }
+}
+
 /// The binned nodes of a build, as the scan reads them.
 #[derive(Clone, Copy)]
 struct GridView<'a> {
@@ -1063,7 +1115,9 @@ impl BroadPhase {
     /// Places the pairs into the nodes' lists (compressed rows per chunk of [`CHUNK`]
     /// nodes): counts per node, row starts, then the chunks' pairs in their order (the
     /// grid scan's in triangle order); a list that is not then sorted by (owner body,
-    /// triangle) is sorted so.
+    /// triangle) is sorted so. In parallel over one part of the chunks per thread, each
+    /// reading all the pairs and placing those of its nodes: every list is the same for
+    /// every thread count.
     fn place_pairs(&mut self, surface: &ContactSurface) {
         let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
@@ -1071,46 +1125,18 @@ impl BroadPhase {
         self.chunk_cands.truncate(n_chunks);
         self.chunk_starts.resize_with(n_chunks, Vec::new);
         self.chunk_starts.truncate(n_chunks);
-        // Counts per node, then row starts per chunk and each node's first slot.
         self.cursor.clear();
         self.cursor.resize(n_surface, 0);
-        for &(k, _) in self.found.iter().flatten() {
-            self.cursor[k as usize] += 1;
-        }
-        for (chunk, (cands, starts)) in self
-            .chunk_cands
-            .iter_mut()
-            .zip(&mut self.chunk_starts)
-            .enumerate()
-        {
-            starts.clear();
-            starts.push(0);
-            let mut running = 0;
-            for slot in &mut self.cursor[chunk * CHUNK..((chunk + 1) * CHUNK).min(n_surface)] {
-                let count = *slot;
-                *slot = running;
-                running += count;
-                starts.push(running);
-            }
-            cands.clear();
-            cands.resize(running, Candidate::default());
-        }
-        for &(k, cand) in self.found.iter().flatten() {
-            let k = k as usize;
-            let slot = &mut self.cursor[k];
-            self.chunk_cands[k / CHUNK][*slot] = cand;
-            *slot += 1;
-        }
+        let chunks_per_part = n_chunks.div_ceil(rayon::current_num_threads()).max(1);
+        let found = &self.found;
         self.chunk_cands
-            .par_iter_mut()
-            .zip(self.chunk_starts.par_iter())
-            .for_each(|(cands, starts)| {
-                for row in starts.windows(2) {
-                    let mine = &mut cands[row[0]..row[1]];
-                    if !mine.is_sorted_by_key(|c| (c.body, c.triangle)) {
-                        mine.sort_unstable_by_key(|c| (c.body, c.triangle));
-                    }
-                }
+            .par_chunks_mut(chunks_per_part)
+            .zip(self.chunk_starts.par_chunks_mut(chunks_per_part))
+            .zip(self.cursor.par_chunks_mut(chunks_per_part * CHUNK))
+            .enumerate()
+            .for_each(|(part, ((cands, starts), cursor))| {
+                let first = part * chunks_per_part * CHUNK;
+                place_part(found, first, cursor, (cands, starts));
             });
     }
 
