@@ -1241,6 +1241,32 @@ mod tests {
         }
     }
 
+    /// The lists are the same for every thread count: the scan's pieces are fixed, and the
+    /// pairs are placed by parts of the node chunks, one per thread, each keeping the
+    /// pairs' order.
+    #[test]
+    fn the_lists_are_the_same_for_every_thread_count() {
+        let (surface, positions) = cluster();
+        let chunks = surface.surface_nodes.len().div_ceil(super::CHUNK);
+        assert!(chunks >= 4, "{chunks} chunks: too few for parts");
+        let lists = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool");
+            pool.install(|| {
+                let mut broad = BroadPhase::for_surface(&surface);
+                broad.build(&positions, &surface, (0.05, 0.1, 0.08), None, |_| false);
+                (broad.pairs, broad.chunk_starts, broad.chunk_cands)
+            })
+        };
+        let serial = lists(1);
+        assert!(serial.0 > 1000, "{} pairs", serial.0);
+        for threads in [2, 3, 4] {
+            assert_eq!(lists(threads), serial, "{threads} threads");
+        }
+    }
+
     /// A box as wide as the numbers allow counts as many cells as a `usize` holds, in
     /// either layout, without overflowing on the way (the choice of scan then queries
     /// face by face).
