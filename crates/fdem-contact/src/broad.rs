@@ -1012,8 +1012,9 @@ impl BroadPhase {
     /// nodes of the framed bodies that meet the box (which the grid does not hold); each
     /// piece lists its pairs in triangle order. A run of consecutive faces of one body
     /// within a piece finds the other bodies' nodes in its boxes' union once when the
-    /// policy allows ([`GridView::foreign_nodes`]), and each face then tests those instead
-    /// of visiting the cells; a face with no node to test is passed over.
+    /// policy allows ([`GridView::foreign_nodes`]); each group of [`FACES_PER_GROUP`] faces
+    /// keeps those in its own union, and each face then tests the group's instead of
+    /// visiting the cells; a face with no node to test is passed over.
     ///
     /// A node farther than the enlargement from the triangle itself cannot reach it
     /// before the next build (every point of the face moves at most half the skin, as
