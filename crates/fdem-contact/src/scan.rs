@@ -96,22 +96,61 @@ pub(crate) struct Nodes<'a> {
 impl Nodes<'_> {
     /// Reads surface nodes `range` into `s`.
     fn read(&self, range: std::ops::Range<usize>, s: &mut Scan) {
+        let finite = match (self.reference, self.expected) {
+            (Some(r), e) => self.read_with(range.clone(), s, |k, x| drift2(e, x, r[k])),
+            (None, _) => self.read_with(range.clone(), s, |_, _| 0.0),
+        };
+        if !finite && s.bad.is_none() {
+            s.bad = self.first_bad(range);
+        }
+    }
+
+    /// The speeds of surface nodes `range`, and their drifts `drift(k, x)` (squared), into
+    /// `s`; whether every position and velocity read was finite. The loop has no branch
+    /// on the values but the fastest node's: finiteness is summed as `x - x` (zero for a
+    /// finite `x`, NaN otherwise) and the largest drift is kept by comparison, which
+    /// passes over a NaN as `f64::max` does, so `s` is the same as node by node.
+    #[allow(clippy::eq_op)] // `x - x` is the finiteness test, on purpose.
+    #[inline(always)]
+    fn read_with(
+        &self,
+        range: std::ops::Range<usize>,
+        s: &mut Scan,
+        drift: impl Fn(usize, [f64; 3]) -> f64,
+    ) -> bool {
         let nodes = &self.surface.surface_nodes;
+        let mut defect = 0.0;
+        let mut max_drift2 = s.max_drift2;
         for k in range {
             let x = self.positions[nodes[k]];
             let v = self.velocities.of_surface_node(self.surface, k, x);
-            if s.bad.is_none() {
-                if !is_finite(x) {
-                    s.bad = Some((k, false));
-                } else if !is_finite(v) {
-                    s.bad = Some((k, true));
-                }
+            for d in 0..3 {
+                defect += (x[d] - x[d]) + (v[d] - v[d]);
             }
-            if let Some(r) = self.reference {
-                s.max_drift2 = s.max_drift2.max(drift2(self.expected, x, r[k]));
+            let d2 = drift(k, x);
+            if d2 > max_drift2 {
+                max_drift2 = d2;
             }
             s.speed(k, norm2(v));
         }
+        s.max_drift2 = max_drift2;
+        defect == 0.0
+    }
+
+    /// The first of surface nodes `range` with a position or velocity that is not finite:
+    /// (surface index, is_velocity).
+    #[cold]
+    fn first_bad(&self, mut range: std::ops::Range<usize>) -> Option<(usize, bool)> {
+        let nodes = &self.surface.surface_nodes;
+        range.find_map(|k| {
+            let x = self.positions[nodes[k]];
+            let v = self.velocities.of_surface_node(self.surface, k, x);
+            if !is_finite(x) {
+                Some((k, false))
+            } else {
+                (!is_finite(v)).then_some((k, true))
+            }
+        })
     }
 
     /// Reads the drifts alone of surface nodes `range` into `s`.
@@ -229,4 +268,114 @@ pub(crate) fn bound_within(
     frames
         .drift_bound(k, expected)
         .filter(|bound| bound * (1.0 + BOUND_MARGIN) + 4.0 * frames.mismatch() <= threshold)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mean_motion::MeanMotion;
+
+    /// The scan node by node, as it was written before its loop lost its branches.
+    fn node_by_node(nodes: &Nodes<'_>) -> Scan {
+        let mut s = Scan::EMPTY;
+        for k in 0..nodes.surface.surface_nodes.len() {
+            let x = nodes.positions[nodes.surface.surface_nodes[k]];
+            let v = nodes.velocities.of_surface_node(nodes.surface, k, x);
+            if s.bad.is_none() {
+                if !is_finite(x) {
+                    s.bad = Some((k, false));
+                } else if !is_finite(v) {
+                    s.bad = Some((k, true));
+                }
+            }
+            if let Some(r) = nodes.reference {
+                s.max_drift2 = s.max_drift2.max(drift2(nodes.expected, x, r[k]));
+            }
+            s.speed(k, norm2(v));
+        }
+        s
+    }
+
+    fn same(a: Scan, b: Scan) -> bool {
+        a.bad == b.bad
+            && a.max_drift2.to_bits() == b.max_drift2.to_bits()
+            && a.max_speed2.to_bits() == b.max_speed2.to_bits()
+            && a.fastest == b.fastest
+    }
+
+    #[test]
+    fn the_scan_is_the_node_by_node_scan_bit_for_bit() {
+        // Three chunks of surface nodes (every other global node), with equal speeds in
+        // two chunks so that the first of the fastest is chosen.
+        let n = 2 * CHUNK + 37;
+        let surface = ContactSurface {
+            triangles: Vec::new(),
+            triangle_body: Vec::new(),
+            surface_nodes: (0..n).map(|k| 2 * k).collect(),
+            node_body: (0..n).map(|k| (k / 50) as u32).collect(),
+            control_areas: vec![1e-6; n],
+        };
+        let wave = |i: usize, f: f64| ((i as f64) * f).sin();
+        let x: Vec<[f64; 3]> = (0..2 * n)
+            .map(|i| [wave(i, 0.7), wave(i, 1.3), wave(i, 2.9)])
+            .collect();
+        let mut v: Vec<[f64; 3]> = (0..2 * n)
+            .map(|i| [wave(i, 0.3), wave(i, 0.5), 0.0])
+            .collect();
+        v[2 * 10] = [3.0, 0.0, 0.0];
+        v[2 * (CHUNK + 5)] = [0.0, 3.0, 0.0];
+        let reference: Vec<[f64; 3]> = (0..n).map(|k| x[2 * k].map(|c| c * 0.999 + 1e-3)).collect();
+        let rate = [[0.0; 3], [0.0; 3], [0.0, 0.0, -0.5]];
+        let motion = MeanMotion::continued(None, [0.0, 0.0, 0.1], rate, 0.0);
+        let expected = motion.since(&crate::mean_motion::IDENTITY, 0.01).unwrap();
+        let mut cases = vec![(x.clone(), v.clone())];
+        for (k, what, value) in [
+            (CHUNK + 3, 0, f64::NAN),
+            (CHUNK + 3, 1, f64::INFINITY),
+            (2 * CHUNK + 1, 0, f64::NEG_INFINITY),
+            (4, 1, f64::NAN),
+        ] {
+            let (mut x, mut v) = (x.clone(), v.clone());
+            [&mut x, &mut v][what][2 * k][1] = value;
+            // A later bad velocity in the same chunk: the first bad node is named.
+            v[2 * (k + 2)][0] = f64::NAN;
+            cases.push((x, v));
+        }
+        for (x, v) in &cases {
+            for (reference, expected) in [
+                (None, None),
+                (Some(reference.as_slice()), None),
+                (Some(reference.as_slice()), Some(&expected)),
+            ] {
+                let nodes = Nodes {
+                    surface: &surface,
+                    positions: x,
+                    velocities: NodeVelocities::new(v, None, 0.0),
+                    reference,
+                    expected,
+                };
+                let (got, want) = (nodes.scan(), node_by_node(&nodes));
+                assert!(same(got, want), "{got:?} != {want:?}");
+            }
+        }
+        // The cases test what they should: a first bad node, a drift, the first fastest.
+        let nodes = |x, v| Nodes {
+            surface: &surface,
+            positions: x,
+            velocities: NodeVelocities::new(v, None, 0.0),
+            reference: Some(&reference),
+            expected: Some(&expected),
+        };
+        let clean = nodes(&cases[0].0, &cases[0].1).scan();
+        assert!(clean.bad.is_none() && clean.max_drift2 > 0.0 && clean.fastest == 10);
+        assert_eq!(
+            nodes(&cases[1].0, &cases[1].1).scan().bad,
+            Some((CHUNK + 3, false))
+        );
+        assert_eq!(
+            nodes(&cases[2].0, &cases[2].1).scan().bad,
+            Some((CHUNK + 3, true))
+        );
+        assert_eq!(nodes(&cases[4].0, &cases[4].1).scan().bad, Some((4, true)));
+    }
 }
