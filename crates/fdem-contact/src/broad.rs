@@ -2,7 +2,7 @@
 //!
 //! Every triangle's bounding box is enlarged by `margin + depth limit` (plus the barycentric
 //! tolerance band). The surface nodes are binned into a uniform grid (a counting sort by
-//! cell), and each triangle visits the cells its enlarged box overlaps: a node of another
+//! cell, in parallel over ranges of cells, [`cell_sort`]), and each triangle visits the cells its enlarged box overlaps: a node of another
 //! body in those cells whose position lies in the box and within the enlargement of the
 //! triangle itself (the point-triangle distance; the box's corners hold many pairs farther
 //! than that) is a candidate pair if it lies in front of the face within the front reach,
@@ -41,6 +41,7 @@
 //! ([`refresh`]: a few rattling particles) or rebuilds everything.
 
 mod bodies;
+mod cell_sort;
 mod framed;
 mod refresh;
 mod window;
@@ -214,28 +215,25 @@ pub(crate) struct BroadPhase {
     boxes: Vec<[f64; 6]>,
     layout: Layout,
     table: CellTable,
-    /// Row starts of the cells' nodes in `cell_nodes` (one more than the cells; node
-    /// numbers fit in `u32`, `ContactSurface::validate` checks the count). Half the bytes
-    /// of `usize` keep more of the rows in cache for the scan's queries.
-    cell_start: Vec<u32>,
-    /// The surface nodes by cell, in increasing order within a cell.
-    cell_nodes: Vec<u32>,
+    /// The binned surface nodes by cell, increasing within a cell, and the cells' row
+    /// starts (one more than the cells). Node numbers fit in `u32`
+    /// (`ContactSurface::validate` checks the count); half the bytes of `usize` keep more
+    /// of the rows in cache for the scan's queries.
+    by_cell: cell_sort::CellSort,
     /// The surface nodes binned in the grid (those of bodies without a frame when the
     /// build has frames), increasing.
     binned: Vec<u32>,
     /// Per binned node, its cell number.
     node_cells: Vec<u32>,
-    /// Reference positions of the nodes of `cell_nodes`, in its order.
+    /// Reference positions of the nodes of `by_cell`, in its order.
     cell_x: Vec<[f64; 3]>,
-    /// Bodies of the nodes of `cell_nodes`, in its order.
+    /// Bodies of the nodes of `by_cell`, in its order.
     cell_body: Vec<u32>,
     /// Pairs `(surface node, candidate)` found by each fixed chunk of triangles, in
     /// triangle order.
     found: Vec<Vec<(u32, Candidate)>>,
     /// Per surface node, the next free slot of its list while the pairs are placed.
     cursor: Vec<usize>,
-    /// Per cell, the next free slot of its row while the nodes are binned.
-    cell_cursor: Vec<u32>,
     /// The direction bins of the rigid bodies' templates ([`framed`]).
     bins: framed::BinCache,
     /// When the scan queries the grid once for a run of one body's faces.
@@ -265,6 +263,9 @@ const CELL_PER_MEAN_BOX: f64 = 0.75;
 /// Triangles per parallel work item of the scan (fixed, so the lists never depend on the
 /// thread count).
 const TRIANGLE_CHUNK: usize = 2048;
+
+/// Nodes per parallel work item of the grid's bounds ([`bounds`]).
+const BOUNDS_CHUNK: usize = 4096;
 
 /// The number of cell `c` (within the grid) in a dense layout of `dims` cells, `x`
 /// fastest: a row along `x` has consecutive numbers.
@@ -492,6 +493,28 @@ fn lower(p: f64, q: f64) -> f64 {
 #[inline(always)]
 fn upper(p: f64, q: f64) -> f64 {
     if p > q { p } else { q }
+}
+
+/// The lower and upper corners of the box of the positions `x[k]` of nodes `nodes`
+/// (infinite the wrong way round for none): per fixed run of nodes in parallel, then the
+/// runs in order, so that of equal coordinates the last is kept, as one pass in order
+/// keeps it ([`lower`], [`upper`]).
+fn bounds(x: &[[f64; 3]], nodes: &[u32]) -> ([f64; 3], [f64; 3]) {
+    let mut runs: Vec<([f64; 3], [f64; 3])> = Vec::new();
+    let none = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let merge = |(mut lo, mut hi): ([f64; 3], [f64; 3]), (p, q): ([f64; 3], [f64; 3])| {
+        for d in 0..3 {
+            lo[d] = lower(lo[d], p[d]);
+            hi[d] = upper(hi[d], q[d]);
+        }
+        (lo, hi)
+    };
+    runs.par_extend(nodes.par_chunks(BOUNDS_CHUNK).map(|run| {
+        run.iter()
+            .map(|&k| (x[k as usize], x[k as usize]))
+            .fold(none, merge)
+    }));
+    runs.into_iter().fold(none, merge)
 }
 
 /// Box `bx` grown by `e` on every side.
@@ -918,19 +941,17 @@ impl BroadPhase {
     /// nodes by cell (a counting sort, increasing node order within a cell). Returns the
     /// grid's frame.
     fn bin_nodes(&mut self, node_body: &[u32], skipped: impl Fn(u32) -> bool) -> Frame {
-        self.binned.clear();
-        self.binned
-            .extend((0..self.reference.len() as u32).filter(|&k| !skipped(node_body[k as usize])));
-        let inv = 1.0 / self.cell_size;
-        let mut origin = [f64::INFINITY; 3];
-        let mut top = [f64::NEG_INFINITY; 3];
-        for &k in &self.binned {
-            let x = self.reference[k as usize];
-            for d in 0..3 {
-                origin[d] = lower(origin[d], x[d]);
-                top[d] = upper(top[d], x[d]);
-            }
+        // Without a branch per node.
+        let n_all = self.reference.len();
+        self.binned.resize(n_all, 0);
+        let mut m = 0;
+        for k in 0..n_all as u32 {
+            self.binned[m] = k;
+            m += usize::from(!skipped(node_body[k as usize]));
         }
+        self.binned.truncate(m);
+        let inv = 1.0 / self.cell_size;
+        let (mut origin, mut top) = bounds(&self.reference, &self.binned);
         if !origin.iter().chain(&top).all(|o| o.is_finite()) {
             origin = [0.0; 3];
             top = [0.0; 3];
@@ -976,27 +997,10 @@ impl BroadPhase {
             Layout::Hash => self.table.len,
         };
         // Counting sort: row starts, then the nodes in increasing order into their rows.
-        let start = &mut self.cell_start;
-        start.clear();
-        start.resize(n_cells + 1, 0);
-        for &c in &self.node_cells {
-            start[c as usize + 1] += 1;
-        }
-        for c in 1..start.len() {
-            start[c] += start[c - 1];
-        }
-        self.cell_cursor.clear();
-        self.cell_cursor.extend_from_slice(&start[..n_cells]);
-        self.cell_nodes.clear();
-        self.cell_nodes.resize(n, 0);
-        for (&k, &c) in self.binned.iter().zip(&self.node_cells) {
-            let slot = &mut self.cell_cursor[c as usize];
-            self.cell_nodes[*slot as usize] = k;
-            *slot += 1;
-        }
+        self.by_cell.sort(&self.binned, &self.node_cells, n_cells);
         // Positions and bodies in the same order, so the scan reads a cell's nodes
         // sequentially.
-        let (reference, cell_nodes) = (&self.reference, &self.cell_nodes);
+        let (reference, cell_nodes) = (&self.reference, &self.by_cell.nodes);
         self.cell_x.clear();
         self.cell_x
             .par_extend(cell_nodes.par_iter().map(|&k| reference[k as usize]));
@@ -1044,8 +1048,8 @@ impl BroadPhase {
             frame,
             layout: self.layout,
             table: &self.table,
-            cell_start: &self.cell_start,
-            cell_nodes: &self.cell_nodes,
+            cell_start: &self.by_cell.start,
+            cell_nodes: &self.by_cell.nodes,
             cell_x: &self.cell_x,
             cell_body: &self.cell_body,
         };
