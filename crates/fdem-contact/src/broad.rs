@@ -10,11 +10,13 @@
 //! node ([`window`]: most nodes within the enlargement behind a face lie beside it). The
 //! cell size is three quarters of the mean enlarged box (at least an eighth of the
 //! largest), so a box overlaps a few cells of a few nodes each; it sets only the work,
-//! never the lists. Cells are numbered densely (`i + nx (j + ny k)`) when the nodes'
-//! region holds at most [`DENSE_CELLS_PER_NODE`] cells per node, and then a box's cells
-//! along `x` in one row are one run of binned nodes; otherwise through their packed
-//! integer coordinates in a deterministic open-addressing table (fixed hash function,
-//! slots numbered in insertion order). Triangles are scanned in parallel in fixed
+//! never the lists. Cells are numbered densely (`i + nx (j + ny k)`, `i` along the rows'
+//! axis, the one along which the scan moves most from body to body, so that consecutive
+//! queries read rows that continue each other) when the nodes' region holds at most
+//! [`DENSE_CELLS_PER_NODE`] cells per node, and then a box's cells in one row are one
+//! run of binned nodes; otherwise through their packed integer coordinates in a
+//! deterministic open-addressing table (fixed hash function, slots numbered in insertion
+//! order). Triangles are scanned in parallel in fixed
 //! chunks, and the pairs are then placed into each node's list in triangle order, sorted
 //! by (owner body, triangle): the lists are the same for every thread count, and a build
 //! costs O(triangles + surface nodes + pairs). A run of consecutive faces of one body (a
@@ -238,6 +240,20 @@ pub(crate) struct BroadPhase {
     bins: framed::BinCache,
     /// When the scan queries the grid once for a run of one body's faces.
     segments: SegmentPolicy,
+    /// Which axis the grid's rows follow.
+    rows: RowAxis,
+}
+
+/// The axis a build's grid numbers its cells along first, its rows' axis: by default the
+/// one along which the scan moves most from body to body ([`BroadPhase::row_axis`]). It
+/// sets only the work, never the lists.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum RowAxis {
+    #[default]
+    Advance,
+    /// Axis `0`, `1` or `2` (`x`, `y`, `z`).
+    #[cfg_attr(not(test), allow(dead_code))]
+    Along(usize),
 }
 
 /// How cells are numbered: a dense box of cells when the occupied region is compact
@@ -267,30 +283,29 @@ const TRIANGLE_CHUNK: usize = 2048;
 /// Nodes per parallel work item of the grid's bounds ([`bounds`]).
 const BOUNDS_CHUNK: usize = 4096;
 
-/// The number of cell `c` (within the grid) in a dense layout of `dims` cells, `x`
-/// fastest: a row along `x` has consecutive numbers.
+/// The number of cell `c` (within the grid; coordinates in the frame's axis order) in a
+/// dense layout of `dims` cells, the first coordinate fastest: a row along the rows' axis
+/// has consecutive numbers.
 #[inline(always)]
 fn dense_index(dims: [i64; 3], c: [i64; 3]) -> usize {
     (c[0] + dims[0] * (c[1] + dims[1] * c[2])) as usize
 }
 
-/// Where the grid lies: the corner of cell `[0, 0, 0]` and the inverse cell size.
+/// Where the grid lies: the corner of cell `[0, 0, 0]`, the inverse cell size, and the
+/// order of the axes in cell coordinates (the first is the rows' axis, numbered fastest).
 #[derive(Clone, Copy, Debug)]
 struct Frame {
     origin: [f64; 3],
     inv: f64,
+    axes: [usize; 3],
 }
 
 impl Frame {
-    /// Integer coordinates of the cell that holds `x`.
+    /// Integer coordinates of the cell that holds `x`, in the order of `axes`.
     #[inline(always)]
     fn cell(self, x: [f64; 3]) -> [i64; 3] {
         let (origin, inv) = (self.origin, self.inv);
-        [
-            floor_to_i64((x[0] - origin[0]) * inv),
-            floor_to_i64((x[1] - origin[1]) * inv),
-            floor_to_i64((x[2] - origin[2]) * inv),
-        ]
+        self.axes.map(|a| floor_to_i64((x[a] - origin[a]) * inv))
     }
 
     /// The lowest and highest integer coordinates of the cells box `bx` overlaps, within
@@ -309,9 +324,9 @@ impl Frame {
     }
 
     /// Appends to `runs` the runs of `cell_nodes` (through the row starts `cell_start`)
-    /// that hold the nodes of every cell a box overlaps, in the order of the cells (`x`
-    /// fastest) and of the nodes within each: with a dense layout, one run per row of
-    /// cells along `x` (consecutive cell numbers, whose nodes lie consecutively), only the
+    /// that hold the nodes of every cell a box overlaps, in the order of the cells (the
+    /// rows' axis fastest) and of the nodes within each: with a dense layout, one run per
+    /// row of cells (consecutive cell numbers, whose nodes lie consecutively), only the
     /// cells of its grid (the others hold no node); with the hash table, one run per cell.
     #[inline(always)]
     fn runs_within(
@@ -956,7 +971,16 @@ impl BroadPhase {
             origin = [0.0; 3];
             top = [0.0; 3];
         }
-        let frame = Frame { origin, inv };
+        let first = match self.rows {
+            RowAxis::Advance => self.row_axis(&skipped),
+            RowAxis::Along(axis) => axis,
+        };
+        let axes = match first {
+            0 => [0, 1, 2],
+            1 => [1, 0, 2],
+            _ => [2, 0, 1],
+        };
+        let frame = Frame { origin, inv, axes };
         let dims = frame.cell(top).map(|e| e.saturating_add(1).max(1));
         let n = self.binned.len();
         let budget = (DENSE_CELLS_PER_NODE * n).max(DENSE_MIN_CELLS);
@@ -1008,6 +1032,36 @@ impl BroadPhase {
         self.cell_body
             .par_extend(cell_nodes.par_iter().map(|&k| node_body[k as usize]));
         frame
+    }
+
+    /// The axis the grid numbers its cells along first (its rows): the one along which the
+    /// scan moves most from one body to the next, so that consecutive queries read rows
+    /// that continue each other in memory. The move is summed over consecutive bodies with
+    /// faces and binned nodes (not `skipped`), between their first nodes' reference
+    /// positions. Ties go to the first axis; the choice sets only the work.
+    fn row_axis(&self, skipped: impl Fn(u32) -> bool) -> usize {
+        let mut advance = [0.0_f64; 3];
+        let mut last: Option<[f64; 3]> = None;
+        for body in 0..self.bodies.bodies() {
+            let (nodes, faces) = (self.bodies.nodes(body), self.bodies.triangles(body));
+            let Some(&first) = nodes.first() else {
+                continue;
+            };
+            if faces.is_empty() || skipped(body as u32) {
+                continue;
+            }
+            let x = self.reference[first as usize];
+            if let Some(p) = last {
+                for d in 0..3 {
+                    advance[d] += (x[d] - p[d]).abs();
+                }
+            }
+            last = Some(x);
+        }
+        (1..3).fold(
+            0,
+            |best, d| if advance[d] > advance[best] { d } else { best },
+        )
     }
 
     /// The scan, parallel over `pieces` (fixed runs of triangles): every triangle visits the
@@ -1179,7 +1233,7 @@ impl<'a> ChunkLists<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::{BroadPhase, SegmentPolicy, floor_to_i64};
+    use super::{BroadPhase, RowAxis, SegmentPolicy, floor_to_i64};
     use crate::ContactSurface;
     use rand::{RngExt, SeedableRng};
     use rand_pcg::Pcg64;
@@ -1246,6 +1300,42 @@ mod tests {
         }
     }
 
+    /// The lists are the same whichever axis the grid's rows follow, and the default
+    /// follows the axis along which the bodies lie one after the other.
+    #[test]
+    fn the_lists_are_the_same_along_every_row_axis() {
+        // The cluster stretched along y, so that the grid's sides differ.
+        let (surface, positions) = cluster();
+        let positions: Vec<[f64; 3]> = positions.iter().map(|x| [x[0], 3.0 * x[1], x[2]]).collect();
+        let lists = |rows| {
+            let mut broad = BroadPhase::for_surface(&surface);
+            broad.rows = rows;
+            broad.build(&positions, &surface, (0.05, 0.1, 0.08), None, |_| false);
+            (broad.pairs, broad.chunk_starts, broad.chunk_cands)
+        };
+        let along_x = lists(RowAxis::Along(0));
+        assert!(along_x.0 > 500, "{} pairs", along_x.0);
+        for rows in [RowAxis::Along(1), RowAxis::Along(2), RowAxis::Advance] {
+            assert_eq!(lists(rows), along_x, "{rows:?}");
+        }
+        // Bodies in a row along y, each a corner of one face: the rows follow y.
+        let line = ContactSurface {
+            triangles: (0..4).map(|b| [3 * b, 3 * b + 1, 3 * b + 2]).collect(),
+            triangle_body: (0..4).collect(),
+            surface_nodes: (0..12).collect(),
+            node_body: (0..12).map(|k| k as u32 / 3).collect(),
+            control_areas: vec![1e-4; 12],
+        };
+        let corners = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.1]];
+        let at: Vec<[f64; 3]> = (0..4)
+            .flat_map(|b| corners.map(|c| [c[0] + 0.01 * b as f64, c[1] + b as f64, c[2]]))
+            .collect();
+        let mut broad = BroadPhase::for_surface(&line);
+        broad.reference = at;
+        assert_eq!(broad.row_axis(|_| false), 1);
+        assert_eq!(broad.row_axis(|b| b % 2 == 1), 1);
+    }
+
     /// The lists are the same for every thread count: the scan's pieces are fixed, and the
     /// pairs are placed by parts of the node chunks, one per thread, each keeping the
     /// pairs' order.
@@ -1280,6 +1370,7 @@ mod tests {
         let frame = super::Frame {
             origin: [0.0; 3],
             inv: 1.0,
+            axes: [0, 1, 2],
         };
         let table = super::CellTable::default();
         let huge = [-1e300, -1e300, -1e300, 1e300, 1e300, 1e300];

@@ -84,6 +84,8 @@ impl LocalGrid {
         let frame = Frame {
             origin: [union[0], union[1], union[2]],
             inv: 1.0 / cell_size,
+            // `x` fastest, as `for_each_cell` numbers the cells.
+            axes: [0, 1, 2],
         };
         let top = frame.cell([-union[3], -union[4], -union[5]]);
         let dims = top.map(|t| t.saturating_add(1).max(1));
