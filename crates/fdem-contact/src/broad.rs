@@ -510,26 +510,39 @@ fn upper(p: f64, q: f64) -> f64 {
     if p > q { p } else { q }
 }
 
-/// The lower and upper corners of the box of the positions `x[k]` of nodes `nodes`
-/// (infinite the wrong way round for none): per fixed run of nodes in parallel, then the
-/// runs in order, so that of equal coordinates the last is kept, as one pass in order
-/// keeps it ([`lower`], [`upper`]).
-fn bounds(x: &[[f64; 3]], nodes: &[u32]) -> ([f64; 3], [f64; 3]) {
-    let mut runs: Vec<([f64; 3], [f64; 3])> = Vec::new();
-    let none = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    let merge = |(mut lo, mut hi): ([f64; 3], [f64; 3]), (p, q): ([f64; 3], [f64; 3])| {
-        for d in 0..3 {
-            lo[d] = lower(lo[d], p[d]);
-            hi[d] = upper(hi[d], q[d]);
-        }
-        (lo, hi)
-    };
+/// A box holding nothing: its lower corner above its upper.
+const EMPTY_BOX: [f64; 6] = [
+    f64::INFINITY,
+    f64::INFINITY,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    f64::NEG_INFINITY,
+    f64::NEG_INFINITY,
+];
+
+/// The smallest box holding boxes `a` and `b` (of equal coordinates, `b`'s: [`lower`],
+/// [`upper`]).
+#[inline(always)]
+fn enclose(mut a: [f64; 6], b: &[f64; 6]) -> [f64; 6] {
+    for d in 0..3 {
+        a[d] = lower(a[d], b[d]);
+        a[d + 3] = upper(a[d + 3], b[d + 3]);
+    }
+    a
+}
+
+/// The box of the positions `x[k]` of nodes `nodes` ([`EMPTY_BOX`] for none): per fixed
+/// run of nodes in parallel, then the runs in order, so that of equal coordinates the
+/// same is kept as by one pass in order.
+fn bounds(x: &[[f64; 3]], nodes: &[u32]) -> [f64; 6] {
+    let mut runs: Vec<[f64; 6]> = Vec::new();
     runs.par_extend(nodes.par_chunks(BOUNDS_CHUNK).map(|run| {
-        run.iter()
-            .map(|&k| (x[k as usize], x[k as usize]))
-            .fold(none, merge)
+        run.iter().fold(EMPTY_BOX, |b, &k| {
+            let [p, q, r] = x[k as usize];
+            enclose(b, &[p, q, r, p, q, r])
+        })
     }));
-    runs.into_iter().fold(none, merge)
+    runs.iter().fold(EMPTY_BOX, enclose)
 }
 
 /// Box `bx` grown by `e` on every side.
@@ -710,25 +723,11 @@ impl SegmentScratch {
     }
 }
 
-/// The smallest box holding `boxes` (an empty box, lower corner above the upper, for none).
-/// Growing it by `e` gives the union of the grown boxes, bit for bit: a rounded difference
-/// never decreases with its first term.
+/// The smallest box holding `boxes` ([`EMPTY_BOX`] for none). Growing it by `e` gives the
+/// union of the grown boxes, bit for bit: a rounded difference never decreases with its
+/// first term.
 fn union_of(boxes: &[[f64; 6]]) -> [f64; 6] {
-    let mut union = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for bx in boxes {
-        for d in 0..3 {
-            union[d] = lower(union[d], bx[d]);
-            union[d + 3] = upper(union[d + 3], bx[d + 3]);
-        }
-    }
-    union
+    boxes.iter().fold(EMPTY_BOX, enclose)
 }
 
 impl GridView<'_> {
@@ -966,11 +965,11 @@ impl BroadPhase {
         }
         self.binned.truncate(m);
         let inv = 1.0 / self.cell_size;
-        let (mut origin, mut top) = bounds(&self.reference, &self.binned);
-        if !origin.iter().chain(&top).all(|o| o.is_finite()) {
-            origin = [0.0; 3];
-            top = [0.0; 3];
+        let mut b = bounds(&self.reference, &self.binned);
+        if !b.iter().all(|o| o.is_finite()) {
+            b = [0.0; 6];
         }
+        let (origin, top) = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
         let first = match self.rows {
             RowAxis::Advance => self.row_axis(&skipped),
             RowAxis::Along(axis) => axis,
