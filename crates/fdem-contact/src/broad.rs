@@ -50,7 +50,7 @@ mod window;
 
 use bodies::BodyIndex;
 pub(crate) use framed::FaceCones;
-pub(crate) use window::WindowReach;
+pub(crate) use window::{FaceWindow, WindowReach};
 
 use rayon::prelude::*;
 
@@ -450,7 +450,7 @@ fn is_candidate(
     x: [f64; 3],
     face: [[f64; 3]; 3],
     reach: FaceReach,
-    window: (f64, &mut impl FnMut() -> f64),
+    window: &mut FaceWindow,
 ) -> bool {
     use crate::vec3::{cross, dot, norm2, sub};
     let (reach2, front2, two_sided) = match reach {
@@ -480,8 +480,7 @@ fn is_candidate(
     if !behind {
         return d2 <= front2;
     }
-    let (depth_limit, window_reach) = window;
-    window::near_window(d2, -s / n2.sqrt(), depth_limit, window_reach())
+    window.holds(d2, -s / n2.sqrt())
 }
 
 /// The box of a triangle (lower corner, upper corner).
@@ -1143,15 +1142,14 @@ impl BroadPhase {
                         }
                         let ids = surface.triangles[t];
                         let face = ids.map(|i| positions[i]);
-                        let mut window_reach = window.of_face_once(face);
+                        let mut face_window = window.of_face_lazily(face);
                         let candidate = Candidate {
                             // Node ids fit in u32: ContactSurface::validate checks the count.
                             nodes: ids.map(|i| i as u32),
                             triangle: t as u32,
                             body: owner,
                         };
-                        let mut test =
-                            |x| is_candidate(x, face, reach, (window.depth, &mut window_reach));
+                        let mut test = |x| is_candidate(x, face, reach, &mut face_window);
                         // The framed bodies' nodes, which the grid does not hold.
                         if let Some(spheres) = spheres {
                             let mut test = |x| in_box(bx, x) && test(x);

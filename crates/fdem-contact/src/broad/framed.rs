@@ -580,15 +580,14 @@ fn unframed_face_pairs(
     let bx = grown_box(face, e);
     let reach = input.reaches.of_face(two_sided(owner));
     let window = input.window;
-    let mut window_reach = window.of_face_once(face);
+    let mut face_window = window.of_face_lazily(face);
     let candidate = Candidate {
         nodes: ids.map(|i| i as u32),
         triangle: t as u32,
         body: owner,
     };
     let nodes = (input.nodes, input.bodies);
-    let mut test =
-        |x| in_box(&bx, x) && is_candidate(x, face, reach, (window.depth, &mut window_reach));
+    let mut test = |x| in_box(&bx, x) && is_candidate(x, face, reach, &mut face_window);
     grid.pairs_of_face((&bx, candidate), nodes, &mut test, scratch, pairs);
 }
 
@@ -686,13 +685,8 @@ fn pairs_with(
             if !in_box(&grown_box(face, e), x) {
                 continue;
             }
-            let window = input.window;
-            if is_candidate(
-                x,
-                face,
-                face_reach,
-                (window.depth, &mut || window.of_face(face)),
-            ) {
+            let mut face_window = input.window.of_face_lazily(face);
+            if is_candidate(x, face, face_reach, &mut face_window) {
                 pairs.push((
                     k,
                     Candidate {

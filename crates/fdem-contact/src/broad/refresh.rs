@@ -616,17 +616,12 @@ fn faces_of_dirty_nodes(
                 let face = ids.map(|i| positions[i]);
                 let bx = grown_box(face, e);
                 let face_reach = reaches.of_face(two_sided(owner));
-                let mut window_reach = reach.window.of_face_once(face);
+                let mut face_window = reach.window.of_face_lazily(face);
                 grid.for_each_overlapping(&grown_box(face, 0.0), |k| {
                     let x = positions[surface.surface_nodes[k as usize]];
                     if surface.node_body[k as usize] != owner
                         && in_box(&bx, x)
-                        && is_candidate(
-                            x,
-                            face,
-                            face_reach,
-                            (reach.window.depth, &mut window_reach),
-                        )
+                        && is_candidate(x, face, face_reach, &mut face_window)
                     {
                         pairs.push((k, candidate(ids, t, owner)));
                     }
@@ -674,7 +669,7 @@ fn nodes_of_dirty_faces(
                             x,
                             face,
                             reaches.of_face(two_sided(owner)),
-                            (reach.window.depth, &mut || reach.window.of_face(face)),
+                            &mut reach.window.of_face_lazily(face),
                         )
                     {
                         pairs.push((k as u32, candidate(ids, t, owner)));

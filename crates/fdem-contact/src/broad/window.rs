@@ -83,11 +83,21 @@ impl WindowReach {
         }
     }
 
-    /// [`WindowReach::of_face`], computed at the first call and kept: a face's scan asks
-    /// for it only when a node lies behind the face.
-    pub(crate) fn of_face_once(self, face: [[f64; 3]; 3]) -> impl FnMut() -> f64 {
-        let mut reach = None;
-        move || *reach.get_or_insert_with(|| self.of_face(face))
+    /// The window of `face` for the candidate test ([`FaceWindow`]): its reach is computed
+    /// only for a node beyond the least reach, and then kept.
+    pub(crate) fn of_face_lazily(self, face: [[f64; 3]; 3]) -> FaceWindow {
+        FaceWindow {
+            allow: self,
+            face,
+            reach: None,
+        }
+    }
+
+    /// The first two terms of [`WindowReach::of_face`]'s sum, those of every face: the node's
+    /// and the corners' motions. The other terms are not negative and are added after
+    /// these, so no face's reach is below this one in floating point either.
+    fn least(&self) -> f64 {
+        self.node + self.corner * (1.0 + 4.0 * BARYCENTRIC_TOLERANCE)
     }
 
     /// How far from the window of `face` (m) a node behind its plane may be and still be
@@ -111,11 +121,7 @@ impl WindowReach {
         };
         let band = 4.0 * BARYCENTRIC_TOLERANCE * longest;
         let mean_tilt = 3.0 * g / (1.0 - g) * self.depth;
-        self.node
-            + self.corner * (1.0 + 4.0 * BARYCENTRIC_TOLERANCE)
-            + self.depth * turn
-            + mean_tilt
-            + band
+        self.least() + self.depth * turn + mean_tilt + band
     }
 }
 
@@ -128,13 +134,52 @@ fn largest_distortion(skin: f64, depth: f64) -> f64 {
 
 /// Whether node `x`, behind the plane of `face` by `depth` and at squared distance `d2`
 /// from the face, lies within `reach` of the face's window of depth `window_depth`.
-#[inline(always)]
+#[cfg(test)]
 pub(crate) fn near_window(d2: f64, depth: f64, window_depth: f64, reach: f64) -> bool {
+    within(from_window2(d2, depth, window_depth), reach)
+}
+
+/// The squared distance from the window of depth `window_depth` of a node behind the face's
+/// plane by `depth` and at squared distance `d2` from the face.
+#[inline(always)]
+fn from_window2(d2: f64, depth: f64, window_depth: f64) -> f64 {
     // The foot's squared distance from the face in its plane: d2 = l^2 + z^2 for a node
     // whose nearest point of the face is the nearest point to its foot.
     let lateral2 = (d2 - depth * depth).max(0.0);
     let beyond = (depth - window_depth).max(0.0);
-    lateral2 + beyond * beyond <= reach * reach * (1.0 + WINDOW_SLACK)
+    lateral2 + beyond * beyond
+}
+
+/// Whether a squared distance `far2` from a window is within `reach` of it. Monotone in
+/// `reach`: a larger reach never turns a pass into a failure, rounding included.
+#[inline(always)]
+fn within(far2: f64, reach: f64) -> bool {
+    far2 <= reach * reach * (1.0 + WINDOW_SLACK)
+}
+
+/// The window of one face as the candidate test asks for it ([`near_window`]): a node within
+/// the least reach of every face ([`WindowReach::least`]) passes without the face's own
+/// reach; for one farther out the reach is computed ([`WindowReach::of_face`]) and kept for
+/// the face's next node. The answer is that of [`near_window`] with the face's reach, bit
+/// for bit: the least reach is a partial sum of that reach, and [`within`] is monotone.
+pub(crate) struct FaceWindow {
+    allow: WindowReach,
+    face: [[f64; 3]; 3],
+    reach: Option<f64>,
+}
+
+impl FaceWindow {
+    /// Whether a node behind the face's plane by `depth` and at squared distance `d2` from
+    /// the face lies within the face's window reach.
+    #[inline(always)]
+    pub(crate) fn holds(&mut self, d2: f64, depth: f64) -> bool {
+        let far2 = from_window2(d2, depth, self.allow.depth);
+        if within(far2, self.allow.least()) {
+            return true;
+        }
+        let (allow, face) = (self.allow, self.face);
+        within(far2, *self.reach.get_or_insert_with(|| allow.of_face(face)))
+    }
 }
 
 /// Relative slack of the window test, far above the round-off of `d2 - z^2`.
@@ -257,6 +302,53 @@ mod tests {
         let flat = [[0.0; 3], [l, 0.0, 0.0], [2.0 * l, 0.0, 0.0]];
         let wide = WindowReach::of_build(skin, depth).of_face(flat);
         assert!(wide >= 2.0 * depth, "{wide}");
+    }
+
+    /// The face's window answers as the test with its own reach, node by node, for nodes
+    /// on both sides of the least reach and of the face's reach, and computes the face's
+    /// reach only for a node beyond the least one.
+    #[test]
+    fn the_face_window_is_the_test_with_the_face_reach_bit_for_bit() {
+        let mut r = Pcg64::seed_from_u64(11);
+        let (skin, depth) = (0.25e-3, 1.75e-3);
+        let (mut lazy, mut computed) = (0, 0);
+        for _ in 0..20_000 {
+            let face = [
+                [0.0, 0.0, 0.0],
+                [4e-3 + r.random_range(-3e-3..1e-3), 0.0, 0.0],
+                [r.random_range(0.0..4e-3), r.random_range(1e-4..4e-3), 0.0],
+            ];
+            let allow = if r.random_range(0.0..1.0) < 0.5 {
+                WindowReach::of_build(skin, depth)
+            } else {
+                WindowReach::of_refresh(skin, depth)
+            };
+            let reach = allow.of_face(face);
+            let mut window = allow.of_face_lazily(face);
+            for _ in 0..4 {
+                // A node whose distance from the window spans both reaches.
+                let far = r.random_range(0.0..1.5) * reach;
+                let z = r.random_range(0.0..depth + far);
+                let beyond = (z - depth).max(0.0);
+                let lateral2 = (far * far - beyond * beyond).max(0.0);
+                let d2 = lateral2 + z * z;
+                let before = window.reach.is_some();
+                assert_eq!(
+                    window.holds(d2, z),
+                    near_window(d2, z, depth, reach),
+                    "{face:?} {d2} {z}"
+                );
+                let least = allow.least();
+                if within(from_window2(d2, z, depth), least) {
+                    lazy += 1;
+                    assert_eq!(window.reach.is_some(), before);
+                } else {
+                    computed += 1;
+                    assert_eq!(window.reach, Some(reach));
+                }
+            }
+        }
+        assert!(lazy > 10_000 && computed > 10_000, "{lazy} {computed}");
     }
 
     #[test]
