@@ -24,8 +24,9 @@
 //! union, and each group of [`FACES_PER_GROUP`] faces, then each face, tests the few
 //! nodes of other bodies found there instead of querying the grid itself: every node in a
 //! face's box is in the union, so the lists are the same, and most faces of a particle,
-//! far from its neighbours, meet none. The boxes are stored as the triangles' own and
-//! grown by the enlargement where they are read.
+//! far from its neighbours, meet none. Each chunk of the scan makes its triangles' own
+//! boxes as it starts (the build's first pass over the triangles only sizes them) and
+//! grows them by the enlargement where it reads them.
 //!
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
@@ -213,8 +214,6 @@ pub(crate) struct BroadPhase {
     /// one ([`refresh::Dirt`]); all `false` between refreshes.
     single_nodes: Vec<bool>,
     single_faces: Vec<bool>,
-    /// Triangle boxes at the last build (the scan grows them by the enlargement).
-    boxes: Vec<[f64; 6]>,
     layout: Layout,
     table: CellTable,
     /// The binned surface nodes by cell, increasing within a cell, and the cells' row
@@ -273,7 +272,7 @@ const DENSE_CELLS_PER_NODE: usize = 8;
 const DENSE_MIN_CELLS: usize = 1 << 12;
 
 /// The grid's cell size over the mean enlarged triangle box (see
-/// `BroadPhase::triangle_boxes`; docs/PERFORMANCE.md has the sizes tried).
+/// `BroadPhase::size_boxes`; docs/PERFORMANCE.md has the sizes tried).
 const CELL_PER_MEAN_BOX: f64 = 0.75;
 
 /// Triangles per parallel work item of the scan (fixed, so the lists never depend on the
@@ -848,7 +847,7 @@ impl BroadPhase {
         self.reference.clear();
         self.reference
             .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
-        let e = self.triangle_boxes(positions, surface, reach);
+        let e = self.size_boxes(positions, surface, reach);
         // The reach in front of a face's plane: see FRONT_SKINS.
         self.front = FRONT_SKINS * skin + (e - reach);
         self.sheet_enlargement = skin + sheet_depth.min(depth_limit) + (e - reach);
@@ -900,28 +899,20 @@ impl BroadPhase {
         self.refreshed_nodes = 0;
     }
 
-    /// The triangle boxes at `positions`; sets the enlargement (`reach` plus the tolerance
-    /// band), by which the scan grows each box where it reads it, and the cell size, and
-    /// returns the enlargement.
-    fn triangle_boxes(
-        &mut self,
-        positions: &[[f64; 3]],
-        surface: &ContactSurface,
-        reach: f64,
-    ) -> f64 {
-        // Raw triangle boxes, and per fixed run of triangles the largest extent and the sum
-        // of the extents (added in run order below: the same cell size for every thread
-        // count).
-        let triangles = &surface.triangles;
-        self.boxes.resize(triangles.len(), [0.0; 6]);
-        let runs: Vec<(f64, f64)> = self
-            .boxes
-            .par_chunks_mut(TRIANGLE_CHUNK)
-            .zip(triangles.par_chunks(TRIANGLE_CHUNK))
-            .map(|(boxes, triangles)| {
+    /// Sizes the triangle boxes at `positions`: sets the enlargement (`reach` plus the
+    /// tolerance band), by which the scan grows each box where it reads it, and the cell
+    /// size, and returns the enlargement. The boxes themselves are not kept: the scan makes
+    /// them again chunk by chunk, where they stay in cache.
+    fn size_boxes(&mut self, positions: &[[f64; 3]], surface: &ContactSurface, reach: f64) -> f64 {
+        // Per fixed run of triangles the largest extent and the sum of the extents (added in
+        // run order below: the same cell size for every thread count).
+        let runs: Vec<(f64, f64)> = surface
+            .triangles
+            .par_chunks(TRIANGLE_CHUNK)
+            .map(|triangles| {
                 let (mut largest, mut sum) = (0.0_f64, 0.0_f64);
-                for (bx, tri) in boxes.iter_mut().zip(triangles) {
-                    *bx = face_box(tri.map(|i| positions[i]));
+                for tri in triangles {
+                    let bx = face_box(tri.map(|i| positions[i]));
                     let mut extent = 0.0_f64;
                     for d in 0..3 {
                         extent = upper(extent, bx[d + 3] - bx[d]);
@@ -1090,7 +1081,7 @@ impl BroadPhase {
         self.found.truncate(pieces.len());
         let reaches = self.reaches();
         let window = self.window;
-        let (boxes, policy, e) = (&self.boxes, self.segments, self.enlargement);
+        let (policy, e) = (self.segments, self.enlargement);
         let bodies = &self.bodies;
         let at = framed::NodeAt {
             positions: &self.reference,
@@ -1113,6 +1104,12 @@ impl BroadPhase {
                 let mut scratch = Default::default();
                 let mut local = SegmentScratch::default();
                 let triangles = pieces[chunk].clone();
+                // The piece's raw boxes, indexed from its first triangle.
+                let boxes: Vec<[f64; 6]> = surface.triangles[triangles.clone()]
+                    .iter()
+                    .map(|tri| face_box(tri.map(|i| positions[i])))
+                    .collect();
+                let first = triangles.start;
                 let mut t = triangles.start;
                 while t < triangles.end {
                     // A run of faces of one body: the nodes of other bodies near all of
@@ -1121,16 +1118,17 @@ impl BroadPhase {
                     let end = (t..triangles.end)
                         .find(|&u| surface.triangle_body[u] != owner)
                         .unwrap_or(triangles.end);
-                    let run = (&boxes[t..end], e, owner);
+                    let run = (&boxes[t - first..end - first], e, owner);
                     let foreign = grid.foreign_nodes(run, policy, &mut local);
                     let reach = reaches.of_face(two_sided(owner));
                     let run_start = t;
-                    for (t, raw) in (t..end).zip(&boxes[t..end]) {
+                    for (t, raw) in (t..end).zip(&boxes[t - first..end - first]) {
                         let bx = &grow(raw, e);
                         let inside = if foreign {
                             // Each group of faces first keeps the foreign nodes near it.
                             if (t - run_start) % FACES_PER_GROUP == 0 {
-                                let group = &boxes[t..(t + FACES_PER_GROUP).min(end)];
+                                let group =
+                                    &boxes[t - first..(t + FACES_PER_GROUP).min(end) - first];
                                 local.gather_near(group, e);
                             }
                             local.in_box_of_near(bx)
