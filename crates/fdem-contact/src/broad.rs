@@ -226,10 +226,8 @@ pub(crate) struct BroadPhase {
     binned: Vec<u32>,
     /// Per binned node, its cell number.
     node_cells: Vec<u32>,
-    /// Reference positions of the nodes of `by_cell`, in its order.
-    cell_x: Vec<[f64; 3]>,
-    /// Bodies of the nodes of `by_cell`, in its order.
-    cell_body: Vec<u32>,
+    /// Reference positions and bodies of the nodes of `by_cell`, in its order.
+    cell_payload: Vec<([f64; 3], u32)>,
     /// Pairs `(surface node, candidate)` found by each fixed chunk of triangles, in
     /// triangle order.
     found: Vec<Vec<(u32, Candidate)>>,
@@ -667,8 +665,8 @@ struct GridView<'a> {
     table: &'a CellTable,
     cell_start: &'a [u32],
     cell_nodes: &'a [u32],
-    cell_x: &'a [[f64; 3]],
-    cell_body: &'a [u32],
+    /// The nodes' positions and bodies, in the order of `cell_nodes`.
+    cell_payload: &'a [([f64; 3], u32)],
 }
 
 /// Buffers one piece of the scan keeps from face to face.
@@ -756,10 +754,7 @@ impl GridView<'_> {
         // Without a branch per node (in or out at random).
         let mut n = 0;
         for run in runs.iter() {
-            let rows = self.cell_x[run.clone()]
-                .iter()
-                .zip(&self.cell_body[run.clone()]);
-            for (i, (&x, &body)) in rows.enumerate() {
+            for (i, &(x, body)) in self.cell_payload[run.clone()].iter().enumerate() {
                 inside[n] = run.start + i;
                 n += usize::from((body != owner) & in_box(bx, x));
             }
@@ -792,7 +787,7 @@ impl GridView<'_> {
         scratch.foreign_x.clear();
         scratch
             .foreign_x
-            .extend(scratch.foreign.iter().map(|&i| self.cell_x[i]));
+            .extend(scratch.foreign.iter().map(|&i| self.cell_payload[i].0));
         true
     }
 }
@@ -1011,15 +1006,15 @@ impl BroadPhase {
         };
         // Counting sort: row starts, then the nodes in increasing order into their rows.
         self.by_cell.sort(&self.binned, &self.node_cells, n_cells);
-        // Positions and bodies in the same order, so the scan reads a cell's nodes
-        // sequentially.
+        // Positions and bodies in the same order, side by side, so the scan reads a cell's
+        // nodes sequentially.
         let (reference, cell_nodes) = (&self.reference, &self.by_cell.nodes);
-        self.cell_x.clear();
-        self.cell_x
-            .par_extend(cell_nodes.par_iter().map(|&k| reference[k as usize]));
-        self.cell_body.clear();
-        self.cell_body
-            .par_extend(cell_nodes.par_iter().map(|&k| node_body[k as usize]));
+        self.cell_payload.clear();
+        self.cell_payload.par_extend(
+            cell_nodes
+                .par_iter()
+                .map(|&k| (reference[k as usize], node_body[k as usize])),
+        );
         frame
     }
 
@@ -1093,8 +1088,7 @@ impl BroadPhase {
             table: &self.table,
             cell_start: &self.by_cell.start,
             cell_nodes: &self.by_cell.nodes,
-            cell_x: &self.cell_x,
-            cell_body: &self.cell_body,
+            cell_payload: &self.cell_payload,
         };
         self.found
             .par_iter_mut()
@@ -1156,7 +1150,7 @@ impl BroadPhase {
                             spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
                         }
                         for &i in inside {
-                            if test(grid.cell_x[i]) {
+                            if test(grid.cell_payload[i].0) {
                                 pairs.push((grid.cell_nodes[i], candidate));
                             }
                         }
@@ -1380,8 +1374,7 @@ mod tests {
                 table: &table,
                 cell_start: &[],
                 cell_nodes: &[],
-                cell_x: &[],
-                cell_body: &[],
+                cell_payload: &[],
             };
             assert_eq!(grid.cells_within(&huge), cells, "{layout:?}");
             assert_eq!(grid.cells_within(&[0.5, 0.5, 0.5, 1.5, 2.5, 0.5]), 6);
