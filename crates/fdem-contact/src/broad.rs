@@ -57,6 +57,7 @@ use rayon::prelude::*;
 
 use crate::ContactSurface;
 use crate::narrow::{BARYCENTRIC_TOLERANCE, distance2_to_triangle};
+use crate::prefetch::prefetch;
 use crate::rigid_frames::RigidFrames;
 
 /// Surface nodes per parallel work item (fixed, so the chunking never depends on the
@@ -277,8 +278,13 @@ const CELL_PER_MEAN_BOX: f64 = 0.75;
 /// thread count).
 const TRIANGLE_CHUNK: usize = 2048;
 
-/// Nodes per parallel work item of the grid's bounds ([`bounds`]).
+/// Nodes per parallel work item of the grid's bounds ([`bounds`]) and of the gather of the
+/// binned nodes' positions and bodies in cell order.
 const BOUNDS_CHUNK: usize = 4096;
+const GATHER_CHUNK: usize = BOUNDS_CHUNK;
+
+/// How many nodes ahead the gather in cell order asks for a node's position and body.
+const GATHER_AHEAD: usize = 16;
 
 /// The number of cell `c` (within the grid; coordinates in the frame's axis order) in a
 /// dense layout of `dims` cells, the first coordinate fastest: a row along the rows' axis
@@ -657,6 +663,29 @@ fn place_part(
     }
 }
 
+/// The positions and bodies of the surface nodes `cell_nodes` (in the grid's cell order)
+/// into `payload`, side by side, in parallel over fixed runs of nodes. A cell's nodes lie
+/// anywhere in `reference`: each read asks for a later node's as it goes.
+fn gather_payload(
+    (reference, node_body): (&[[f64; 3]], &[u32]),
+    cell_nodes: &[u32],
+    payload: &mut Vec<([f64; 3], u32)>,
+) {
+    payload.resize(cell_nodes.len(), ([0.0; 3], 0));
+    payload
+        .par_chunks_mut(GATHER_CHUNK)
+        .zip(cell_nodes.par_chunks(GATHER_CHUNK))
+        .for_each(|(payload, nodes)| {
+            for (i, (slot, &k)) in payload.iter_mut().zip(nodes).enumerate() {
+                if let Some(&ahead) = nodes.get(i + GATHER_AHEAD) {
+                    prefetch(reference, ahead as usize);
+                    prefetch(node_body, ahead as usize);
+                }
+                *slot = (reference[k as usize], node_body[k as usize]);
+            }
+        });
+}
+
 /// The binned nodes of a build, as the scan reads them.
 #[derive(Clone, Copy)]
 struct GridView<'a> {
@@ -1008,13 +1037,8 @@ impl BroadPhase {
         self.by_cell.sort(&self.binned, &self.node_cells, n_cells);
         // Positions and bodies in the same order, side by side, so the scan reads a cell's
         // nodes sequentially.
-        let (reference, cell_nodes) = (&self.reference, &self.by_cell.nodes);
-        self.cell_payload.clear();
-        self.cell_payload.par_extend(
-            cell_nodes
-                .par_iter()
-                .map(|&k| (reference[k as usize], node_body[k as usize])),
-        );
+        let nodes = (&self.reference[..], node_body);
+        gather_payload(nodes, &self.by_cell.nodes, &mut self.cell_payload);
         frame
     }
 
