@@ -203,6 +203,22 @@ mod tests {
         }
     }
 
+    /// A random face of about 4 mm in the plane `z = 0` (outward normal `+z`), and the
+    /// allowances of a build or of a refresh at random.
+    fn random_face(r: &mut Pcg64, (skin, depth): (f64, f64)) -> ([[f64; 3]; 3], WindowReach) {
+        let face = [
+            [0.0, 0.0, 0.0],
+            [4e-3 + r.random_range(-1e-3..1e-3), 0.0, 0.0],
+            [r.random_range(0.0..4e-3), r.random_range(2e-3..4e-3), 0.0],
+        ];
+        let allow = if r.random_range(0.0..1.0) < 0.5 {
+            WindowReach::of_build(skin, depth)
+        } else {
+            WindowReach::of_refresh(skin, depth)
+        };
+        (face, allow)
+    }
+
     /// Random faces, nodes and motions within the allowances: every node that ends in
     /// the moved face's window (the hand kernel accepts it) started within the window
     /// reach of the face as found, or in front of its plane.
@@ -213,16 +229,7 @@ mod tests {
         let mut hits = 0;
         let mut tight = 0.0_f64;
         for _ in 0..400_000 {
-            let face = [
-                [0.0, 0.0, 0.0],
-                [4e-3 + r.random_range(-1e-3..1e-3), 0.0, 0.0],
-                [r.random_range(0.0..4e-3), r.random_range(2e-3..4e-3), 0.0],
-            ];
-            let allow = if r.random_range(0.0..1.0) < 0.5 {
-                WindowReach::of_build(skin, depth)
-            } else {
-                WindowReach::of_refresh(skin, depth)
-            };
+            let (face, allow) = random_face(&mut r, (skin, depth));
             let x = [
                 r.random_range(-3e-3..7e-3),
                 r.random_range(-3e-3..7e-3),
@@ -313,16 +320,7 @@ mod tests {
         let (skin, depth) = (0.25e-3, 1.75e-3);
         let (mut lazy, mut computed) = (0, 0);
         for _ in 0..20_000 {
-            let face = [
-                [0.0, 0.0, 0.0],
-                [4e-3 + r.random_range(-3e-3..1e-3), 0.0, 0.0],
-                [r.random_range(0.0..4e-3), r.random_range(1e-4..4e-3), 0.0],
-            ];
-            let allow = if r.random_range(0.0..1.0) < 0.5 {
-                WindowReach::of_build(skin, depth)
-            } else {
-                WindowReach::of_refresh(skin, depth)
-            };
+            let (face, allow) = random_face(&mut r, (skin, depth));
             let reach = allow.of_face(face);
             let mut window = allow.of_face_lazily(face);
             for _ in 0..4 {
