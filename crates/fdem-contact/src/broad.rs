@@ -278,10 +278,12 @@ const CELL_PER_MEAN_BOX: f64 = 0.75;
 /// thread count).
 const TRIANGLE_CHUNK: usize = 2048;
 
-/// Nodes per parallel work item of the grid's bounds ([`bounds`]) and of the gather of the
-/// binned nodes' positions and bodies in cell order.
+/// Nodes per parallel work item of the grid's bounds ([`bounds`]).
 const BOUNDS_CHUNK: usize = 4096;
-const GATHER_CHUNK: usize = BOUNDS_CHUNK;
+
+/// Nodes per parallel work item of the gather of the binned nodes' positions and bodies
+/// in cell order ([`gather_payload`]).
+const GATHER_CHUNK: usize = 4096;
 
 /// How many nodes ahead the gather in cell order asks for a node's position and body.
 const GATHER_AHEAD: usize = 16;

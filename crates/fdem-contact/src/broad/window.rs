@@ -132,13 +132,6 @@ fn largest_distortion(skin: f64, depth: f64) -> f64 {
     DISTORTION_FRACTION * 0.5 * skin / (skin + depth)
 }
 
-/// Whether node `x`, behind the plane of `face` by `depth` and at squared distance `d2`
-/// from the face, lies within `reach` of the face's window of depth `window_depth`.
-#[cfg(test)]
-pub(crate) fn near_window(d2: f64, depth: f64, window_depth: f64, reach: f64) -> bool {
-    within(from_window2(d2, depth, window_depth), reach)
-}
-
 /// The squared distance from the window of depth `window_depth` of a node behind the face's
 /// plane by `depth` and at squared distance `d2` from the face.
 #[inline(always)]
@@ -157,11 +150,12 @@ fn within(far2: f64, reach: f64) -> bool {
     far2 <= reach * reach * (1.0 + WINDOW_SLACK)
 }
 
-/// The window of one face as the candidate test asks for it ([`near_window`]): a node within
-/// the least reach of every face ([`WindowReach::least`]) passes without the face's own
-/// reach; for one farther out the reach is computed ([`WindowReach::of_face`]) and kept for
-/// the face's next node. The answer is that of [`near_window`] with the face's reach, bit
-/// for bit: the least reach is a partial sum of that reach, and [`within`] is monotone.
+/// The window of one face as the candidate test asks for it: whether a node behind the
+/// face's plane lies within the face's reach ([`WindowReach::of_face`]) of its window. A
+/// node within the least reach of every face ([`WindowReach::least`]) passes without the
+/// face's own reach; for one farther out the reach is computed and kept for the face's next
+/// node. The answer is the one with the face's reach, bit for bit: the least reach is a
+/// partial sum of that reach, and [`within`] is monotone.
 pub(crate) struct FaceWindow {
     allow: WindowReach,
     face: [[f64; 3]; 3],
@@ -201,6 +195,13 @@ mod tests {
                 return add(p, scale(d, by));
             }
         }
+    }
+
+    /// Whether a node behind the plane of a face by `depth` and at squared distance `d2` from
+    /// the face lies within `reach` of the face's window of depth `window_depth`: the test
+    /// with a face's own reach, which [`FaceWindow::holds`] answers.
+    fn near_window(d2: f64, depth: f64, window_depth: f64, reach: f64) -> bool {
+        within(from_window2(d2, depth, window_depth), reach)
     }
 
     /// A random face of about 4 mm in the plane `z = 0` (outward normal `+z`), and the
