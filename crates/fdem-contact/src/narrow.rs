@@ -142,6 +142,7 @@ pub fn point_at(weights: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
 /// Squared distance from `p` to the closest point of the triangle `[a, b, c]` (Ericson,
 /// Real-Time Collision Detection, section 5.1.5: the Voronoi region of a vertex, an edge
 /// or the face). A degenerate triangle gives 0 (the exact tests reject it later).
+#[inline]
 pub(crate) fn distance2_to_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> f64 {
     let ab = sub(b, a);
     let ac = sub(c, a);
