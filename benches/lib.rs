@@ -1,1 +1,3 @@
-//! Shared fixtures for the criterion benchmarks.
+//! Shared fixtures for the criterion benchmarks and the bench examples.
+
+pub mod lattice;
