@@ -872,7 +872,7 @@ impl BroadPhase {
         self.window = WindowReach::of_build(skin, depth_limit);
         self.reference.clear();
         self.reference
-            .extend(surface.surface_nodes.iter().map(|&g| positions[g]));
+            .par_extend(surface.surface_nodes.par_iter().map(|&g| positions[g]));
         let e = self.size_boxes(positions, surface, reach);
         // The reach in front of a face's plane: see FRONT_SKINS.
         self.front = FRONT_SKINS * skin + (e - reach);
