@@ -64,11 +64,11 @@ fn run() -> Result<(), String> {
         }
         Ok(ms)
     };
-    let mut rows = Vec::with_capacity(rounds);
+    let mut rows = Vec::new();
     pool.install(|| -> Result<(), String> {
         step(true)?;
         println!("round,step_ms,rebuild_step_ms,build_ms,build_in_steps");
-        for round in 0..rounds + WARM_UP {
+        for round in 0..rounds.saturating_add(WARM_UP) {
             let plain = step(false)?;
             let rebuilt = step(true)?;
             if round >= WARM_UP {

@@ -8,7 +8,7 @@
 //! rebuild (`rebuild+step`). Criterion's throughput is in surface-node contact evaluations
 //! per second. On the `-shuffled` lattices the faces and nodes a surface node meets lie
 //! anywhere in the arrays. `FDEM_BENCH_64K=1` adds the 64k-particle lattices (2.7 M
-//! surface nodes, about 3 GB each). A build's cost in steps, measured build by build, is
+//! surface nodes each). A build's cost in steps, measured build by build, is
 //! the `build_cost` example's.
 
 use std::hint::black_box;

@@ -88,8 +88,8 @@ pub const LATTICES: [(usize, &str, bool); 5] = [
     (40, "64k-shuffled", true),
 ];
 
-/// The lattices the contact bench times: the 64k ones (2.7 M surface nodes, about 3 GB
-/// each) only with `FDEM_BENCH_64K` set.
+/// The lattices the contact bench times: the 64k ones (2.7 M surface nodes, a peak of
+/// about 1.2 GB for one in the `build_cost` example) only with `FDEM_BENCH_64K` set.
 pub fn sizes() -> Vec<(usize, &'static str, bool)> {
     let large = std::env::var_os("FDEM_BENCH_64K").is_some();
     LATTICES
