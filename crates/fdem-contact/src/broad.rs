@@ -45,11 +45,13 @@
 
 mod bodies;
 mod cell_sort;
+mod found;
 mod framed;
 mod refresh;
 mod window;
 
 use bodies::BodyIndex;
+use found::FoundPairs;
 pub(crate) use framed::FaceCones;
 pub(crate) use window::{FaceWindow, WindowReach};
 
@@ -229,9 +231,8 @@ pub(crate) struct BroadPhase {
     node_cells: Vec<u32>,
     /// Reference positions and bodies of the nodes of `by_cell`, in its order.
     cell_payload: Vec<([f64; 3], u32)>,
-    /// Pairs `(surface node, candidate)` found by each fixed chunk of triangles, in
-    /// triangle order.
-    found: Vec<Vec<(u32, Candidate)>>,
+    /// Pairs `(surface node, candidate)` found by the build, before they are placed.
+    found: FoundPairs,
     /// Per surface node, the next free slot of its list while the pairs are placed.
     cursor: Vec<usize>,
     /// The direction bins of the rigid bodies' templates ([`framed`]).
@@ -610,58 +611,6 @@ impl SegmentPolicy {
 impl Default for SegmentPolicy {
     fn default() -> Self {
         SegmentPolicy::DEFAULT
-    }
-}
-
-/// Places the pairs of `found` whose node lies in `first .. first + cursor.len()` into
-/// the lists of that part's chunks (`cands`, `starts`, from chunk `first / CHUNK`):
-/// counts per node into `cursor` (zero on entry), row starts, the pairs in their order,
-/// then each list sorted by (owner body, triangle) unless it already is.
-fn place_part(
-    found: &[Vec<(u32, Candidate)>],
-    first: usize,
-    cursor: &mut [usize],
-    (cands, starts): (&mut [Vec<Candidate>], &mut [Vec<usize>]),
-) {
-    let len = cursor.len();
-    let mine = |k: u32| (k as usize).checked_sub(first).filter(|&i| i < len);
-    for &(k, _) in found.iter().flatten() {
-        if let Some(i) = mine(k) {
-            cursor[i] += 1;
-        }
-    }
-    // Row starts per chunk, and each node's first slot.
-    for ((rows, chunk_starts), slots) in cands
-        .iter_mut()
-        .zip(starts.iter_mut())
-        .zip(cursor.chunks_mut(CHUNK))
-    {
-        chunk_starts.clear();
-        chunk_starts.push(0);
-        let mut running = 0;
-        for slot in slots {
-            let count = *slot;
-            *slot = running;
-            running += count;
-            chunk_starts.push(running);
-        }
-        rows.clear();
-        rows.resize(running, Candidate::default());
-    }
-    for &(k, cand) in found.iter().flatten() {
-        if let Some(i) = mine(k) {
-            let slot = &mut cursor[i];
-            cands[i / CHUNK][*slot] = cand;
-            *slot += 1;
-        }
-    }
-    for (rows, chunk_starts) in cands.iter_mut().zip(starts.iter()) {
-        for row in chunk_starts.windows(2) {
-            let list = &mut rows[row[0]..row[1]];
-            if !list.is_sorted_by_key(|c| (c.body, c.triangle)) {
-                list.sort_unstable_by_key(|c| (c.body, c.triangle));
-            }
-        }
     }
 }
 
@@ -1098,8 +1047,8 @@ impl BroadPhase {
         (pieces, spheres): (&[std::ops::Range<usize>], Option<&framed::SphereGrid>),
         two_sided: &(impl Fn(u32) -> bool + Sync),
     ) {
-        self.found.resize_with(pieces.len(), Vec::new);
-        self.found.truncate(pieces.len());
+        self.found.reset(surface.surface_nodes.len(), pieces.len());
+        let (parts, part_len) = (self.found.parts(), self.found.part_len());
         let reaches = self.reaches();
         let window = self.window;
         let (policy, e) = (self.segments, self.enlargement);
@@ -1117,10 +1066,11 @@ impl BroadPhase {
             cell_payload: &self.cell_payload,
         };
         self.found
-            .par_iter_mut()
+            .pieces_mut()
             .enumerate()
-            .for_each(|(chunk, pairs)| {
-                pairs.clear();
+            .for_each(|(chunk, lists)| {
+                // The pairs by the part of their node, and the framed bodies' pairs.
+                let (split, mixed) = lists.split_at_mut(parts);
                 let mut scratch = Default::default();
                 let mut local = SegmentScratch::default();
                 let triangles = pieces[chunk].clone();
@@ -1173,11 +1123,14 @@ impl BroadPhase {
                             let mut test = |x| in_box(bx, x) && test(x);
                             let nodes = (at, bodies);
                             let face = (bx, candidate);
+                            let pairs = &mut mixed[0];
                             spheres.pairs_of_face(face, nodes, &mut test, &mut scratch, pairs);
                         }
                         for &i in inside {
                             if test(grid.cell_payload[i].0) {
-                                pairs.push((grid.cell_nodes[i], candidate));
+                                let node = grid.cell_nodes[i];
+                                let part = FoundPairs::part_of(part_len, parts, node);
+                                split[part].push((node, candidate));
                             }
                         }
                     }
@@ -1187,11 +1140,10 @@ impl BroadPhase {
     }
 
     /// Places the pairs into the nodes' lists (compressed rows per chunk of [`CHUNK`]
-    /// nodes): counts per node, row starts, then the chunks' pairs in their order (the
-    /// grid scan's in triangle order); a list that is not then sorted by (owner body,
-    /// triangle) is sorted so. In parallel over one part of the chunks per thread, each
-    /// reading all the pairs and placing those of its nodes: every list is the same for
-    /// every thread count.
+    /// nodes): counts per node, row starts, then the pairs; a list that is not then
+    /// sorted by (owner body, triangle) is sorted so. In parallel over the parts of the
+    /// chunks the scan split its pairs by ([`found`]), each reading its own pairs and the
+    /// mixed ones: every list is the same for every thread count.
     fn place_pairs(&mut self, surface: &ContactSurface) {
         let n_surface = surface.surface_nodes.len();
         let n_chunks = n_surface.div_ceil(CHUNK);
@@ -1201,16 +1153,16 @@ impl BroadPhase {
         self.chunk_starts.truncate(n_chunks);
         self.cursor.clear();
         self.cursor.resize(n_surface, 0);
-        let chunks_per_part = n_chunks.div_ceil(rayon::current_num_threads()).max(1);
         let found = &self.found;
+        let part_len = found.part_len();
+        let chunks_per_part = part_len / CHUNK;
         self.chunk_cands
             .par_chunks_mut(chunks_per_part)
             .zip(self.chunk_starts.par_chunks_mut(chunks_per_part))
-            .zip(self.cursor.par_chunks_mut(chunks_per_part * CHUNK))
+            .zip(self.cursor.par_chunks_mut(part_len))
             .enumerate()
             .for_each(|(part, ((cands, starts), cursor))| {
-                let first = part * chunks_per_part * CHUNK;
-                place_part(found, first, cursor, (cands, starts));
+                found.place_part(part, cursor, (cands, starts));
             });
     }
 
