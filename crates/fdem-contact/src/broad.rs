@@ -1,32 +1,32 @@
 //! Broad phase: a uniform grid over the surface nodes with a Verlet skin.
 //!
-//! Every triangle's bounding box is enlarged by `margin + depth limit` (plus the barycentric
-//! tolerance band). The surface nodes are binned into a uniform grid (a counting sort by
-//! cell, in parallel over ranges of cells, [`cell_sort`]), and each triangle visits the
-//! cells its enlarged box overlaps: a node of another body in those cells whose position
-//! lies in the box and within the enlargement of the triangle itself (the point-triangle
-//! distance; the box's corners hold many pairs farther than that) is a candidate pair if
-//! it lies in front of the face within the front reach, or behind it near enough to its
-//! window, the prism where the narrow phase accepts a node ([`window`]: most nodes within
-//! the enlargement behind a face lie beside it). The cell size is three quarters of the
-//! mean enlarged box (at least an eighth of the largest), so a box overlaps a few cells of
-//! a few nodes each; it sets only the work, never the lists. Cells are numbered densely
-//! (`i + nx (j + ny k)`, `i` along the rows' axis, the one along which the scan moves most
-//! from body to body, so that consecutive queries read rows that continue each other) when
-//! the nodes' region holds at most [`DENSE_CELLS_PER_NODE`] cells per node, and then a
-//! box's cells in one row are one run of binned nodes; otherwise through their packed
-//! integer coordinates in a deterministic open-addressing table (fixed hash function, slots
-//! numbered in insertion order). Triangles are scanned in parallel in fixed chunks, and the
-//! pairs are then placed into each node's list in triangle order, sorted by (owner body,
-//! triangle): the lists are the same for every thread count, and a build costs
-//! O(triangles + surface nodes + pairs). A run of consecutive faces of one body (a
-//! particle's faces) whose boxes' union overlaps few cells queries the grid once for the
-//! union, and each group of [`FACES_PER_GROUP`] faces, then each face, tests the few
-//! nodes of other bodies found there instead of querying the grid itself: every node in a
-//! face's box is in the union, so the lists are the same, and most faces of a particle,
-//! far from its neighbours, meet none. Each chunk of the scan makes its triangles' own
-//! boxes as it starts (the build's first pass over the triangles only sizes them) and
-//! grows them by the enlargement where it reads them.
+//! Every triangle's bounding box is enlarged by `margin + depth limit` (plus the
+//! barycentric tolerance band). The surface nodes are binned into a uniform grid (a
+//! counting sort by cell, in parallel over ranges of cells, [`cell_sort`]), and each
+//! triangle visits the cells its enlarged box overlaps: a node of another body in those
+//! cells whose position lies in the box and within the enlargement of the triangle itself
+//! (the point-triangle distance; the box's corners hold many pairs farther than that) is a
+//! candidate pair if it lies in front of the face within the front reach, or behind it near
+//! enough to its window, the prism where the narrow phase accepts a node ([`window`]: most
+//! nodes within the enlargement behind a face lie beside it). The cell size is three
+//! quarters of the mean enlarged box (at least an eighth of the largest), so a box overlaps
+//! a few cells of a few nodes each; it sets only the work, never the lists. Cells are
+//! numbered densely (`i + nx (j + ny k)`, `i` along the rows' axis, the one along which the
+//! scan moves most from body to body, so that consecutive queries read rows that continue
+//! each other) when the nodes' region holds at most [`DENSE_CELLS_PER_NODE`] cells per
+//! node, and then a box's cells in one row are one run of binned nodes; otherwise through
+//! their packed integer coordinates in a deterministic open-addressing table (fixed hash
+//! function, slots numbered in insertion order). Triangles are scanned in parallel in fixed
+//! chunks, and the pairs are then placed into each node's list, by parts of the nodes
+//! ([`found`]), and sorted by (owner body, triangle): the lists are the same for every
+//! thread count, and a build costs O(triangles + surface nodes + pairs). A run of
+//! consecutive faces of one body (a particle's faces) whose boxes' union overlaps few cells
+//! queries the grid once for the union, and each group of [`FACES_PER_GROUP`] faces, then
+//! each face, tests the few nodes of other bodies found there instead of querying the grid
+//! itself: every node in a face's box is in the union, so the lists are the same, and most
+//! faces of a particle, far from its neighbours, meet none. Each chunk of the scan makes
+//! its triangles' own boxes as it starts (the build's first pass over the triangles only
+//! sizes them) and grows them by the enlargement where it reads them.
 //!
 //! Rigid bodies with a frame (`crate::rigid_frames`) are met body by body instead
 //! ([`framed`]): their nodes stay out of the grid, the pairs with their faces come from
