@@ -3,12 +3,12 @@
 //! The lists are placed in parallel, one part of the node chunks per thread, each part
 //! counting and then placing the pairs of its own nodes. The grid scan knows a pair's part
 //! as it finds it (the part follows from the node's number), so each scan piece keeps one
-//! vector per part: a part then reads its own vectors only, not every pair twice. The
-//! framed bodies' pairs (found body by body, or beside the grid scan) stay in vectors that
-//! mix the parts, which every part reads and filters. The order in which a list receives
-//! its pairs does not matter: each list is sorted by (owner body, triangle) at the end,
-//! and those keys are unique within a list, so every list is the same for every thread
-//! count and split.
+//! vector per part: a part then reads its own pairs (twice: to count, then to place), not
+//! every pair. The framed bodies' pairs (found body by body, or beside the grid scan) stay
+//! in vectors that mix the parts, which every part reads and filters. The order in which a
+//! list receives its pairs does not matter: each list is sorted by (owner body, triangle)
+//! at the end, and a candidate is set by its triangle (its nodes and body follow), so equal
+//! keys are equal candidates and every list is the same for every thread count and split.
 
 use rayon::prelude::*;
 
