@@ -1048,7 +1048,7 @@ impl BroadPhase {
         two_sided: &(impl Fn(u32) -> bool + Sync),
     ) {
         self.found.reset(surface.surface_nodes.len(), pieces.len());
-        let (parts, part_len) = (self.found.parts(), self.found.part_len());
+        let parts = self.found.parts();
         let reaches = self.reaches();
         let window = self.window;
         let (policy, e) = (self.segments, self.enlargement);
@@ -1070,7 +1070,7 @@ impl BroadPhase {
             .enumerate()
             .for_each(|(chunk, lists)| {
                 // The pairs by the part of their node, and the framed bodies' pairs.
-                let (split, mixed) = lists.split_at_mut(parts);
+                let (split, mixed) = lists.split_at_mut(parts.count);
                 let mut scratch = Default::default();
                 let mut local = SegmentScratch::default();
                 let triangles = pieces[chunk].clone();
@@ -1129,8 +1129,7 @@ impl BroadPhase {
                         for &i in inside {
                             if test(grid.cell_payload[i].0) {
                                 let node = grid.cell_nodes[i];
-                                let part = FoundPairs::part_of(part_len, parts, node);
-                                split[part].push((node, candidate));
+                                split[parts.of(node)].push((node, candidate));
                             }
                         }
                     }
@@ -1154,7 +1153,7 @@ impl BroadPhase {
         self.cursor.clear();
         self.cursor.resize(n_surface, 0);
         let found = &self.found;
-        let part_len = found.part_len();
+        let part_len = found.parts().len;
         let chunks_per_part = part_len / CHUNK;
         self.chunk_cands
             .par_chunks_mut(chunks_per_part)

@@ -17,18 +17,32 @@ use super::{CHUNK, Candidate};
 /// One found pair: the surface node and its candidate face.
 pub(super) type Pair = (u32, Candidate);
 
+/// How the surface nodes are split into parts: consecutive runs of `len` nodes.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Parts {
+    /// The number of parts (at least one).
+    pub(super) count: usize,
+    /// Surface nodes per part (a whole number of chunks).
+    pub(super) len: usize,
+}
+
+impl Parts {
+    /// The part of surface node `node` (the last for one beyond it).
+    #[inline(always)]
+    pub(super) fn of(self, node: u32) -> usize {
+        (node as usize / self.len).min(self.count - 1)
+    }
+}
+
 /// The pairs of a build before they are placed.
 #[derive(Clone, Debug, Default)]
 pub(super) struct FoundPairs {
-    /// First `pieces` groups of `parts + 1` vectors (a scan piece's pairs of each part,
-    /// then its mixed pairs), then vectors of mixed pairs.
+    /// First `pieces` groups of `parts.count + 1` vectors (a scan piece's pairs of each
+    /// part, then its mixed pairs), then vectors of mixed pairs.
     vecs: Vec<Vec<Pair>>,
-    /// The node parts (at least one).
-    parts: usize,
+    parts: Parts,
     /// The scan pieces that lead `vecs`.
     pieces: usize,
-    /// Surface nodes per part (a whole number of chunks).
-    part_len: usize,
 }
 
 impl FoundPairs {
@@ -37,28 +51,25 @@ impl FoundPairs {
     pub(super) fn reset(&mut self, n_surface: usize, pieces: usize) {
         let chunks = n_surface.div_ceil(CHUNK);
         let chunks_per_part = chunks.div_ceil(rayon::current_num_threads()).max(1);
-        self.part_len = chunks_per_part * CHUNK;
-        self.parts = chunks.div_ceil(chunks_per_part).max(1);
+        self.parts = Parts {
+            count: chunks.div_ceil(chunks_per_part).max(1),
+            len: chunks_per_part * CHUNK,
+        };
         self.pieces = pieces;
-        let n = pieces * (self.parts + 1);
+        let n = pieces * (self.parts.count + 1);
         self.vecs.resize_with(n, Vec::new);
         self.vecs.truncate(n);
         self.vecs.iter_mut().for_each(Vec::clear);
     }
 
-    /// The node parts.
-    pub(super) fn parts(&self) -> usize {
+    /// How the nodes are split into parts.
+    pub(super) fn parts(&self) -> Parts {
         self.parts
-    }
-
-    /// Surface nodes per part.
-    pub(super) fn part_len(&self) -> usize {
-        self.part_len
     }
 
     /// Each scan piece's vectors, in parallel: one per part, then its mixed one.
     pub(super) fn pieces_mut(&mut self) -> rayon::slice::ChunksMut<'_, Vec<Pair>> {
-        let group = self.parts + 1;
+        let group = self.parts.count + 1;
         self.vecs[..self.pieces * group].par_chunks_mut(group)
     }
 
@@ -71,7 +82,7 @@ impl FoundPairs {
     /// one (slice by slice, so that each is a plain loop).
     #[inline(always)]
     fn for_each_of_part(&self, part: usize, mut f: impl FnMut(&Pair)) {
-        let group = self.parts + 1;
+        let group = self.parts.count + 1;
         let (split, mixed) = self.vecs.split_at(self.pieces * group);
         for g in split.chunks(group) {
             g[part].iter().for_each(&mut f);
@@ -80,13 +91,7 @@ impl FoundPairs {
         mixed.iter().for_each(|v| v.iter().for_each(&mut f));
     }
 
-    /// The part of surface node `node`.
-    #[inline(always)]
-    pub(super) fn part_of(part_len: usize, parts: usize, node: u32) -> usize {
-        (node as usize / part_len).min(parts - 1)
-    }
-
-    /// Places the pairs of part `part` (nodes `part * part_len ..`, `cursor.len()` of
+    /// Places the pairs of part `part` (nodes `part * parts.len ..`, `cursor.len()` of
     /// them) into the lists of that part's chunks (`cands`, `starts`): counts per node into
     /// `cursor` (zero on entry), row starts, the pairs in their order, then each list
     /// sorted by (owner body, triangle) unless it already is.
@@ -96,7 +101,7 @@ impl FoundPairs {
         cursor: &mut [usize],
         (cands, starts): (&mut [Vec<Candidate>], &mut [Vec<usize>]),
     ) {
-        let (first, len) = (part * self.part_len, cursor.len());
+        let (first, len) = (part * self.parts.len, cursor.len());
         let mine = |k: u32| (k as usize).checked_sub(first).filter(|&i| i < len);
         self.for_each_of_part(part, |&(k, _)| {
             if let Some(i) = mine(k) {
