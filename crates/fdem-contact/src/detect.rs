@@ -319,21 +319,29 @@ impl Ctx<'_> {
             .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| behind_wall(d)))
     }
 
-    /// Asks the memory system for the corners' positions of surface node `k`'s candidates
-    /// `cands` and, when it has candidates, the node's contact coefficients. The
-    /// candidates' faces lie on other bodies, anywhere in the array; the coefficients of
-    /// the few nodes with contacts are read far apart: without a hint each waits for a
-    /// cache miss. A hint changes no value.
+    /// Asks the memory system for the corners' positions and velocities of surface node
+    /// `k`'s candidates `cands` and, when it has candidates, the node's velocity and
+    /// contact coefficients. The candidates' faces lie on other bodies, anywhere in the
+    /// arrays; the nodes with candidates, and the fewer with contacts, are read far apart:
+    /// without a hint each waits for a cache miss. A velocity the node's or the face's
+    /// body motion gives is not asked for ([`NodeVelocities::prefetch`]). A hint changes
+    /// no value.
     #[inline(always)]
     fn prefetch_faces(&self, k: usize, cands: &[Candidate]) {
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
+            // And its velocity, read before any face is met.
+            let node = self.surface.surface_nodes[k];
+            self.velocities.prefetch(self.surface.node_body[k], [node]);
         }
         for c in cands {
-            for &j in &c.nodes {
-                prefetch(self.positions, j as usize);
+            let corners = c.nodes.map(|j| j as usize);
+            for j in corners {
+                prefetch(self.positions, j);
             }
+            // A contact's face velocity reads its corners' (`Ctx::push_face`).
+            self.velocities.prefetch(c.body, corners);
         }
     }
 

@@ -157,6 +157,18 @@ impl<'a> NodeVelocities<'a> {
         self.moving.and_then(|(f, m)| f.motion_of(body, m))
     }
 
+    /// Asks the memory system for the velocities [`NodeVelocities::of`] will read for the
+    /// global nodes `nodes` of body `body`: the array's entries, unless the body's motion
+    /// gives them (then nothing is asked). A hint changes no value.
+    #[inline(always)]
+    pub(crate) fn prefetch(&self, body: u32, nodes: impl IntoIterator<Item = usize>) {
+        if self.motion(body).is_none() {
+            for node in nodes {
+                crate::prefetch::prefetch(self.array, node);
+            }
+        }
+    }
+
     /// The velocity of global node `node`, of body `body`, at its position `x`.
     #[inline(always)]
     pub(crate) fn of(&self, body: u32, node: usize, x: [f64; 3]) -> [f64; 3] {
