@@ -328,11 +328,13 @@ impl Ctx<'_> {
     /// no value.
     #[inline(always)]
     fn prefetch_faces(&self, k: usize, cands: &[Candidate]) {
+        let node = self.surface.surface_nodes[k];
+        // Every node's position is read, with candidates or not (`Ctx::touches_no_wall`).
+        prefetch(self.positions, node);
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
             // And its velocity, read before any face is met.
-            let node = self.surface.surface_nodes[k];
             self.velocities.prefetch(self.surface.node_body[k], [node]);
         }
         for c in cands {
