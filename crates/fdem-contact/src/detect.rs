@@ -228,6 +228,22 @@ pub(crate) struct Ctx<'a> {
     /// Per body id, whether its nodes without candidates may be passed over
     /// ([`bodies_clear_of_walls`]; empty: none may).
     pub(crate) clear_of_walls: &'a [bool],
+    /// Whether the node arrays lie beyond a core's cache ([`far_arrays`]).
+    pub(crate) far_arrays: bool,
+}
+
+/// The size of the positions array (bytes) above which [`far_arrays`] holds: twice the
+/// second-level cache of one core of the development machine.
+const FAR_ARRAYS_BYTES: usize = 2 << 20;
+
+/// Whether the node arrays of `positions` are too large to stay in a core's cache between
+/// evaluations, so that the narrow phase also asks ahead for the reads that miss only
+/// then (its nodes' own positions and velocities, its candidates' corner velocities,
+/// [`Ctx::prefetch_faces`]). In a smaller model those reads hit the cache and the hints'
+/// own instructions cost more than they save (docs/PERFORMANCE.md, "The corners'
+/// velocities asked for ahead ..."). Either way the values are the same.
+pub(crate) fn far_arrays(positions: &[[f64; 3]]) -> bool {
+    std::mem::size_of_val(positions) > FAR_ARRAYS_BYTES
 }
 
 /// Whether a node at signed `distance` (m, positive in front) from a wall is in contact
@@ -319,31 +335,40 @@ impl Ctx<'_> {
             .any(|shape| wall_distance(shape, x).is_some_and(|(d, _)| behind_wall(d)))
     }
 
-    /// Asks the memory system for the corners' positions and velocities of surface node
-    /// `k`'s candidates `cands` and, when it has candidates, the node's velocity and
-    /// contact coefficients. The candidates' faces lie on other bodies, anywhere in the
-    /// arrays; the nodes with candidates, and the fewer with contacts, are read far apart:
-    /// without a hint each waits for a cache miss. A velocity the node's or the face's
-    /// body motion gives is not asked for ([`NodeVelocities::prefetch`]). A hint changes
-    /// no value.
+    /// Asks the memory system for the corners' positions of surface node `k`'s candidates
+    /// `cands` and, when it has candidates, the node's contact coefficients; with node
+    /// arrays beyond a core's cache ([`far_arrays`]) also for the node's own position and
+    /// velocity and the corners' velocities. The candidates' faces lie on other bodies,
+    /// anywhere in the arrays; the nodes with candidates, and the fewer with contacts, are
+    /// read far apart: without a hint each waits for a cache miss. A velocity the node's
+    /// or the face's body motion gives is not asked for ([`NodeVelocities::prefetch`]). A
+    /// hint changes no value.
     #[inline(always)]
     fn prefetch_faces(&self, k: usize, cands: &[Candidate]) {
+        let far = self.far_arrays;
         let node = self.surface.surface_nodes[k];
-        // Every node's position is read, with candidates or not (`Ctx::touches_no_wall`).
-        prefetch(self.positions, node);
+        if far {
+            // Every node's position is read, with candidates or not
+            // (`Ctx::touches_no_wall`).
+            prefetch(self.positions, node);
+        }
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
-            // And its velocity, read before any face is met.
-            self.velocities.prefetch(self.surface.node_body[k], [node]);
+            if far {
+                // And the node's velocity, read before any face is met.
+                self.velocities.prefetch(self.surface.node_body[k], [node]);
+            }
         }
         for c in cands {
             let corners = c.nodes.map(|j| j as usize);
             for j in corners {
                 prefetch(self.positions, j);
             }
-            // A contact's face velocity reads its corners' (`Ctx::push_face`).
-            self.velocities.prefetch(c.body, corners);
+            if far {
+                // A contact's face velocity reads its corners' (`Ctx::push_face`).
+                self.velocities.prefetch(c.body, corners);
+            }
         }
     }
 

@@ -1760,6 +1760,7 @@ impl ContactModel {
             diagnose: self.jumps.is_some(),
             evaluated: self.evaluations > 0,
             clear_of_walls: &self.clear_of_walls,
+            far_arrays: crate::detect::far_arrays(positions),
         };
         self.chunks
             .par_iter_mut()
