@@ -346,19 +346,12 @@ impl Ctx<'_> {
     #[inline(always)]
     fn prefetch_faces(&self, k: usize, cands: &[Candidate]) {
         let far = self.far_arrays;
-        let node = self.surface.surface_nodes[k];
-        if far {
-            // Every node's position is read, with candidates or not
-            // (`Ctx::touches_no_wall`).
-            prefetch(self.positions, node);
-        }
         if !cands.is_empty() {
             // The law reads the node's coefficients if a contact forms.
             prefetch(self.coefficients, k);
-            if far {
-                // And the node's velocity, read before any face is met.
-                self.velocities.prefetch(self.surface.node_body[k], [node]);
-            }
+        }
+        if far {
+            self.prefetch_node(k, !cands.is_empty());
         }
         for c in cands {
             let corners = c.nodes.map(|j| j as usize);
@@ -369,6 +362,18 @@ impl Ctx<'_> {
                 // A contact's face velocity reads its corners' (`Ctx::push_face`).
                 self.velocities.prefetch(c.body, corners);
             }
+        }
+    }
+
+    /// Asks for surface node `k`'s own position, which is read with candidates or
+    /// without (`Ctx::touches_no_wall`), and, `with_candidates`, its velocity, read before
+    /// any face is met. Only for node arrays beyond a core's cache ([`far_arrays`]).
+    #[inline(always)]
+    fn prefetch_node(&self, k: usize, with_candidates: bool) {
+        let node = self.surface.surface_nodes[k];
+        prefetch(self.positions, node);
+        if with_candidates {
+            self.velocities.prefetch(self.surface.node_body[k], [node]);
         }
     }
 
